@@ -1,0 +1,578 @@
+"""Specs as data: Platform, Terrain, SensorSpec, Scenario.
+
+Frozen dataclasses loaded from TOML files under ``scenarios/`` with strict validation: an unknown
+key, a wrong type, an out-of-range value or a missing file raises :class:`SpecError` naming the
+file, the dotted field and the offending value.  TOML is parsed as data only (``tomllib``).
+
+Units are SI inside.  Files may give a few quantities in the units the papers use; those fields
+carry the unit in their name (``*_deg``, ``*_rpm``, ``*_cm``) and are converted here, at the file
+boundary, into the SI field of the dataclass.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+import types
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+class SpecError(ValueError):
+    """A spec file is malformed. The message names file, field and value."""
+
+    def __init__(self, file: str | Path | None, fieldname: str, value: Any, expected: str):
+        self.file, self.field, self.value, self.expected = str(file), fieldname, value, expected
+        super().__init__(f"{file}: field '{fieldname}' = {value!r}: {expected}")
+
+
+def _positive(x: float) -> bool:
+    return x > 0 and math.isfinite(x)
+
+
+def _nonneg(x: float) -> bool:
+    return x >= 0 and math.isfinite(x)
+
+
+# --------------------------------------------------------------------------------------------
+# Specs
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class MotorSpec:
+    """DC motor, gearbox and motor controller (Yu 2010 Table II, eqs. (26)-(27)).
+
+    Torques and speeds are at the motor shaft; ``gear_ratio`` maps to the wheel.
+    """
+
+    stall_torque: float = 0.2775  # tau_s [N m] at nominal voltage
+    no_load_speed: float = 487.16  # omega_n [rad/s] at nominal voltage
+    nominal_voltage: float = 12.0  # V_nom [V]
+    torque_constant: float = 0.023  # K_T [N m / A]
+    max_current: float = 5.5  # I_max continuous [A]
+    gear_ratio: float = 49.8  # g_r
+    pwm: float = 0.95  # PWM duty limit of the controller
+    supply_voltage: float = 12.0  # V_CC [V]
+    controller_loss: float = 0.0  # U_loss [V]
+    max_power: float = 0.0  # electrical power limit per motor [W]; 0 = none
+    gear_efficiency: float = 1.0
+    motors_per_side: int = 2
+
+    _checks = {
+        "stall_torque": (_positive, "> 0"),
+        "no_load_speed": (_positive, "> 0"),
+        "nominal_voltage": (_positive, "> 0"),
+        "torque_constant": (_positive, "> 0"),
+        "max_current": (_positive, "> 0"),
+        "gear_ratio": (_positive, "> 0"),
+        "pwm": (lambda x: 0 < x <= 1, "in (0, 1]"),
+        "supply_voltage": (_positive, "> 0"),
+        "controller_loss": (_nonneg, ">= 0"),
+        "max_power": (_nonneg, ">= 0"),
+        "gear_efficiency": (lambda x: 0 < x <= 1, "in (0, 1]"),
+        "motors_per_side": (lambda x: x in (1, 2), "1 or 2"),
+    }
+
+
+@dataclass(frozen=True)
+class PidSpec:
+    """Per-side wheel-speed PID (Yu 2010 Fig. 4: derivative on the reference).
+
+    Gains act on the wheel-speed error in rad/s and output motor voltage [V] (Yu's loop).
+    """
+
+    kp: float = 30.25
+    ki: float = 151.25
+    kd: float = 0.0605
+    rate_hz: float = 1000.0
+    gain_scale: float = 1.0  # Yu's gains are on the linear speed [m/s]: scale = wheel radius
+
+    _checks = {
+        "kp": (_nonneg, ">= 0"),
+        "ki": (_nonneg, ">= 0"),
+        "kd": (_nonneg, ">= 0"),
+        "rate_hz": (_positive, "> 0"),
+        "gain_scale": (_positive, "> 0"),
+    }
+
+
+@dataclass(frozen=True)
+class EncoderSpec:
+    counts_per_rev: int = 8192  # Wang 2015 Sec. 3.2 (at the wheel)
+    rate_hz: float = 100.0
+    scale_error_l: float = 0.0  # fractional scale error of the left encoder (gap catalogue)
+    scale_error_r: float = 0.0
+    _checks = {
+        "counts_per_rev": (lambda x: x > 0, "> 0"),
+        "rate_hz": (_positive, "> 0"),
+        "scale_error_l": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
+        "scale_error_r": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
+    }
+
+
+@dataclass(frozen=True)
+class ImuSpec:
+    rate_hz: float = 125.0  # Yi 2009 Sec. VI
+    accel_noise: float = 0.02  # white noise std per sample [m/s^2]
+    gyro_noise: float = 0.002  # [rad/s]
+    accel_bias_walk: float = 1e-4  # bias random walk std per sqrt(s) [m/s^2/sqrt(s)]
+    gyro_bias_walk: float = 1e-5  # [rad/s/sqrt(s)]
+    gyro_bias_z: float = 0.0  # constant gyro z bias [rad/s] (gap catalogue)
+    saturation_accel: float = 80.0
+    saturation_gyro: float = 8.0
+    _checks = {k: (_nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
+        "rate_hz": (_positive, "> 0"),
+        "saturation_accel": (_positive, "> 0"),
+        "saturation_gyro": (_positive, "> 0"),
+        "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
+    }
+
+
+@dataclass(frozen=True)
+class GnssSpec:
+    rate_hz: float = 5.0
+    pos_noise: float = 0.02  # [m]
+    vel_noise: float = 0.02  # [m/s]
+    yaw_noise: float = 0.01  # [rad]
+    drift_walk: float = 0.0  # random walk of the position error [m/sqrt(s)] (Liu: initial drift)
+    initial_drift: float = 0.0  # [m] offset at t = 0 decaying with drift_tau
+    drift_tau: float = 30.0  # [s]
+    dropout_prob: float = 0.0  # probability a sample is missing
+    outages: tuple[tuple[float, float], ...] = ()  # [(t_start, t_end), ...] with no fix
+    _checks = {
+        "rate_hz": (_positive, "> 0"),
+        "pos_noise": (_nonneg, ">= 0"),
+        "vel_noise": (_nonneg, ">= 0"),
+        "yaw_noise": (_nonneg, ">= 0"),
+        "drift_walk": (_nonneg, ">= 0"),
+        "initial_drift": (_nonneg, ">= 0"),
+        "drift_tau": (_positive, "> 0"),
+        "dropout_prob": (lambda x: 0 <= x < 1, "in [0, 1)"),
+    }
+
+
+@dataclass(frozen=True)
+class ReferenceSpec:
+    """External 'ground-truth' sensor of a paper: vision (Yi), laser (Wang), DGPS (Liu)."""
+
+    kind: str = "laser"
+    rate_hz: float = 135.0
+    pos_noise: float = 0.003  # [m]
+    yaw_noise: float = 0.002  # [rad]
+    _checks = {
+        "kind": (lambda x: x in ("vision", "laser", "dgps", "mocap", "icp"), "one of vision, laser, dgps, mocap, icp"),
+        "rate_hz": (_positive, "> 0"),
+        "pos_noise": (_nonneg, ">= 0"),
+        "yaw_noise": (_nonneg, ">= 0"),
+    }
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    encoder: EncoderSpec = field(default_factory=EncoderSpec)
+    imu: ImuSpec = field(default_factory=ImuSpec)
+    gnss: GnssSpec = field(default_factory=GnssSpec)
+    reference: ReferenceSpec = field(default_factory=ReferenceSpec)
+
+
+@dataclass(frozen=True)
+class Platform:
+    """A skid-steered vehicle. Body frame x forward, y left, z up (DESIGN.md).
+
+    ``track`` is B (lateral distance between the wheel centre lines), ``wheelbase`` the distance
+    between front and rear axles (2a).  ``patch_length``/``patch_gap`` are Yu's L and C
+    (Table II); ``wheel_width`` is b.
+    """
+
+    name: str
+    mass: float
+    yaw_inertia: float
+    track: float
+    wheelbase: float
+    wheel_radius: float
+    wheel_width: float = 0.05
+    patch_length: float = 0.31  # Yu's L: outer extent of the front/rear patches
+    patch_gap: float = 0.24  # Yu's C
+    wheel_inertia: float = 0.02  # spin inertia of one wheel incl. reflected rotor [kg m^2]
+    cg_height: float = 0.15
+    cg_offset_x: float = 0.0  # centre of mass ahead of the geometric centre [m]
+    cg_offset_y: float = 0.0
+    body_length: float = 0.5
+    body_width: float = 0.4
+    body_height: float = 0.2
+    wheel_radius_scale_l: float = 1.0  # effective rolling radius scale (tire pressure) left
+    wheel_radius_scale_r: float = 1.0
+    actuator_delay: float = 0.0  # [s] delay between command and PID reference
+    payload: float = 0.0  # extra mass at the CG [kg]
+    motor: MotorSpec = field(default_factory=MotorSpec)
+    pid: PidSpec = field(default_factory=PidSpec)
+    sensors: SensorSpec = field(default_factory=SensorSpec)
+    source: str = ""
+
+    _checks = {
+        "mass": (_positive, "> 0 kg"),
+        "yaw_inertia": (_positive, "> 0 kg m^2"),
+        "track": (_positive, "> 0 m"),
+        "wheelbase": (_positive, "> 0 m"),
+        "wheel_radius": (_positive, "> 0 m"),
+        "wheel_width": (_positive, "> 0 m"),
+        "patch_length": (_positive, "> 0 m"),
+        "patch_gap": (_nonneg, ">= 0 m"),
+        "wheel_inertia": (_positive, "> 0 kg m^2"),
+        "cg_height": (_positive, "> 0 m"),
+        "body_length": (_positive, "> 0 m"),
+        "body_width": (_positive, "> 0 m"),
+        "body_height": (_positive, "> 0 m"),
+        "wheel_radius_scale_l": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
+        "wheel_radius_scale_r": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
+        "actuator_delay": (lambda x: 0 <= x < 2, "in [0, 2) s"),
+        "payload": (_nonneg, ">= 0 kg"),
+    }
+
+    @property
+    def total_mass(self) -> float:
+        return self.mass + self.payload
+
+
+@dataclass(frozen=True)
+class FrictionPatch:
+    """A region of the ground with a friction scale (outside the gap catalogue on purpose)."""
+
+    x_min: float = 0.0
+    x_max: float = 0.0
+    y_min: float = -1e3
+    y_max: float = 1e3
+    mu_scale: float = 1.0
+    t_period: float = 0.0  # > 0: friction scale oscillates in time with this period [s]
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """Ground: tangential tire force law and its parameters.
+
+    ``model``: ``"coulomb"`` (smooth Coulomb friction ellipse on the slip velocity) or
+    ``"janosi"`` (Janosi-Hanamoto shear stress vs shear displacement, Yu 2010 eq. (7), over a
+    contact patch of length ``patch`` with shear modulus ``shear_modulus``).
+    ``mu_sa``/``mu_op``: friction when the motor drives / brakes the wheel (Yu Sec. V-A).
+    ``mu_lat_ratio`` scales lateral friction (anisotropic tires).
+    """
+
+    name: str
+    model: str = "janosi"
+    mu_sa: float = 0.4437
+    mu_op: float = 0.3093
+    mu_lat_ratio: float = 1.0
+    shear_modulus: float = 0.00054  # K [m]
+    rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl)
+    slope: float = 0.0  # ramp angle [rad], from slope_deg in files
+    ramp_start: float = 0.5  # x where the ramp begins [m]
+    slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
+    friction_patches: tuple[FrictionPatch, ...] = ()
+    source: str = ""
+
+    _checks = {
+        "model": (lambda x: x in ("coulomb", "janosi"), "'coulomb' or 'janosi'"),
+        "mu_sa": (lambda x: 0 < x < 3, "in (0, 3)"),
+        "mu_op": (lambda x: 0 < x < 3, "in (0, 3)"),
+        "mu_lat_ratio": (lambda x: 0.1 < x < 5, "in (0.1, 5)"),
+        "shear_modulus": (_positive, "> 0 m"),
+        "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
+        "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),
+        "slip_velocity_eps": (_positive, "> 0"),
+    }
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One piece of a piecewise-constant command: until ``t_end`` hold (a, b)."""
+
+    t_end: float
+    a: float
+    b: float
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """A command profile.
+
+    kind:
+      - ``wheel_speeds``: ``segments`` of (t_end, w_l, w_r) in ``units`` (rad/s | rpm | m/s tread)
+      - ``v_radius``: segments of (t_end, v [m/s], radius [m], +CCW; inf for straight)
+      - ``v_curvature_ratio``: segments of (t_end, v, curvature_ratio (v_l+v_r)/(v_r-v_l))
+      - ``lemniscate``: Yu 2010 eqs. (29)-(30), ``t0``..``t0+duration`` of the curve
+      - ``random``: joystick-like random (v, yaw rate) steps, seeded (Mandow's validation paths)
+      - ``rotation``: pure rotation at tread speed ``v``
+    ``accel`` limits the ramp from one segment to the next [m/s^2] (0 = steps).
+    """
+
+    kind: str = "wheel_speeds"
+    units: str = "rad/s"
+    segments: tuple[Segment, ...] = ()
+    accel: float = 0.0
+    v: float = 0.2
+    t0: float = 0.0
+    step: float = 2.0
+    v_max: float = 0.5
+    w_max: float = 1.0
+    _checks = {
+        "kind": (
+            lambda x: x in ("wheel_speeds", "v_radius", "v_curvature_ratio", "lemniscate", "random", "rotation"),
+            "one of wheel_speeds, v_radius, v_curvature_ratio, lemniscate, random, rotation",
+        ),
+        "units": (lambda x: x in ("rad/s", "rpm", "m/s"), "one of rad/s, rpm, m/s"),
+        "accel": (_nonneg, ">= 0"),
+        "step": (_positive, "> 0"),
+    }
+
+
+@dataclass(frozen=True)
+class Scenario:
+    id: str
+    platform: Platform
+    terrain: Terrain
+    command: CommandSpec
+    duration: float
+    dt: float = 1.0 / 240.0  # physics step [s]
+    log_rate_hz: float = 100.0
+    initial_speed: float = 0.0  # [m/s] forward speed at t = 0 (Yu's ramps)
+    initial_yaw: float = 0.0
+    description: str = ""
+    paper: str = ""
+    source_file: str = ""
+
+    _checks = {
+        "duration": (lambda x: 0 < x <= 4 * 3600, "in (0, 14400] s"),
+        "dt": (lambda x: 1e-4 <= x <= 0.02, "in [1e-4, 0.02] s"),
+        "log_rate_hz": (_positive, "> 0"),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Loading
+# --------------------------------------------------------------------------------------------
+_UNIT_FIELDS = {  # file field -> (dataclass field, converter)
+    "slope_deg": ("slope", math.radians),
+    "initial_yaw_deg": ("initial_yaw", math.radians),
+}
+
+
+def _type_ok(value: Any, tp: Any) -> bool:
+    if tp is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if tp is bool:
+        return isinstance(value, bool)
+    return True
+
+
+def _coerce(value: Any, tp: Any, file: Path | str, name: str) -> Any:
+    origin = typing.get_origin(tp)
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, Mapping):
+            raise SpecError(file, name, value, f"expected a table for {tp.__name__}")
+        return build(tp, value, file, name)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            raise SpecError(file, name, value, "expected an array")
+        inner = args[0]
+        out = []
+        for i, v in enumerate(value):
+            iname = f"{name}[{i}]"
+            if dataclasses.is_dataclass(inner):
+                if isinstance(v, (list, tuple)):  # positional form: [t_end, a, b]
+                    fnames = [f.name for f in dataclasses.fields(inner) if not f.name.startswith("_")]
+                    if len(v) != len(fnames):
+                        raise SpecError(file, iname, v, f"expected {len(fnames)} numbers {fnames}")
+                    v = dict(zip(fnames, v))
+                out.append(_coerce(v, inner, file, iname))
+            elif typing.get_origin(inner) is tuple:
+                out.append(_coerce(v, inner, file, iname))
+            else:
+                if not _type_ok(v, inner if inner is not Ellipsis else float):
+                    raise SpecError(file, iname, v, f"expected {getattr(inner, '__name__', inner)}")
+                out.append(float(v) if inner is float else v)
+        return tuple(out)
+    if not _type_ok(value, tp):
+        raise SpecError(file, name, value, f"expected {getattr(tp, '__name__', tp)}")
+    if tp is float:
+        value = float(value)
+        if math.isnan(value):
+            raise SpecError(file, name, value, "expected a number, not NaN")
+    return value
+
+
+def build(cls: type, data: Mapping[str, Any], file: Path | str = "<dict>", prefix: str = "") -> Any:
+    """Build dataclass ``cls`` from a mapping, validating keys, types and ranges."""
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if not f.name.startswith("_")}
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        name = f"{prefix}.{key}" if prefix else key
+        if key in _UNIT_FIELDS and _UNIT_FIELDS[key][0] in fields:
+            target, conv = _UNIT_FIELDS[key]
+            if not _type_ok(value, float):
+                raise SpecError(file, name, value, "expected a number")
+            kwargs[target] = conv(float(value))
+            continue
+        if key not in fields:
+            raise SpecError(file, name, value, f"unknown key; allowed: {sorted(fields)}")
+        kwargs[key] = _coerce(value, hints[key], file, name)
+    missing = [
+        n for n, f in fields.items()
+        if n not in kwargs and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
+    if missing:
+        name = f"{prefix}.{missing[0]}" if prefix else missing[0]
+        raise SpecError(file, name, None, "required field is missing")
+    checks = getattr(cls, "_checks", {})
+    for key, value in kwargs.items():
+        if key in checks:
+            ok, expected = checks[key]
+            if not ok(value):
+                name = f"{prefix}.{key}" if prefix else key
+                raise SpecError(file, name, value, f"expected {expected}")
+    return cls(**kwargs)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise SpecError(path, "<file>", str(path), "file not found")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+
+
+def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
+    parts = dotted.split(".")
+    node = data
+    for p in parts[:-1]:
+        node = node.setdefault(p, {})
+        if not isinstance(node, dict):
+            raise SpecError("<--set>", dotted, value, "cannot set a field inside a non-table")
+    node[parts[-1]] = value
+
+
+def parse_override(text: str) -> tuple[str, Any]:
+    """Parse ``key.path=value`` (value in TOML syntax; bare words are strings)."""
+    if "=" not in text:
+        raise SpecError("<--set>", text, text, "expected key=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()
+    return key, value
+
+
+def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
+    path = _resolve(name_or_path, root / "platforms")
+    return build(Platform, _read_toml(path), path)
+
+
+def load_terrain(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Terrain:
+    path = _resolve(name_or_path, root / "terrains")
+    return build(Terrain, _read_toml(path), path)
+
+
+def _resolve(name_or_path: str | Path, folder: Path) -> Path:
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.is_absolute() or p.exists():
+        return p
+    return folder / f"{name_or_path}.toml"
+
+
+def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[Path, dict[str, Any]]:
+    """The raw merged dict of a scenario: its platform and terrain files inlined as tables."""
+    path = _resolve(name_or_path, root)
+    raw = _read_toml(path)
+    data = dict(raw)
+    for key, folder in (("platform", "platforms"), ("terrain", "terrains")):
+        ref = data.get(key)
+        if ref is None:
+            raise SpecError(path, key, None, "required field is missing")
+        if isinstance(ref, str):
+            ppath = _resolve(ref, root / folder)
+            if not ppath.is_file():
+                raise SpecError(path, key, ref, f"unknown {key}: no file {ppath}")
+            base = _read_toml(ppath)
+            data[key] = base
+        elif not isinstance(ref, dict):
+            raise SpecError(path, key, ref, f"expected a {key} name or table")
+    # [platform_overrides] / [terrain_overrides] tables merge on top of the referenced files
+    for key in ("platform", "terrain"):
+        ov = data.pop(f"{key}_overrides", None)
+        if ov:
+            data[key] = _deep_merge(data[key], ov)
+    return path, data
+
+
+def _deep_merge(a: dict[str, Any], b: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(a)
+    for k, v in b.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), dict):
+            out[k] = _deep_merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def load_scenario(
+    name_or_path: str | Path,
+    overrides: Mapping[str, Any] | None = None,
+    root: Path = SCENARIO_DIR,
+) -> Scenario:
+    """Load ``scenarios/<name>.toml`` with its platform and terrain, applying dotted overrides
+    (``{"terrain.mu_sa": 0.5}``, as ``--set terrain.mu_sa=0.5`` on the command line)."""
+    path, data = scenario_data(name_or_path, root)
+    for key, value in (overrides or {}).items():
+        _set_dotted(data, key, value)
+    data.setdefault("id", path.stem)
+    data["source_file"] = str(path)
+    return build(Scenario, data, path)
+
+
+def scenario_from_dict(data: Mapping[str, Any], file: str = "<dict>") -> Scenario:
+    return build(Scenario, data, file)
+
+
+def replace(spec: Any, **changes: Any) -> Any:
+    """``dataclasses.replace`` with dotted keys: replace(scn, **{"terrain.mu_sa": 0.5})."""
+    nested: dict[str, dict[str, Any]] = {}
+    flat: dict[str, Any] = {}
+    for k, v in changes.items():
+        if "." in k:
+            head, rest = k.split(".", 1)
+            nested.setdefault(head, {})[rest] = v
+        else:
+            flat[k] = v
+    for head, sub in nested.items():
+        flat[head] = replace(getattr(spec if head not in flat else flat, head), **sub)
+    return dataclasses.replace(spec, **flat)
+
+
+def to_dict(spec: Any) -> dict[str, Any]:
+    """Plain-data form (for hashing and metadata)."""
+    return dataclasses.asdict(spec)
+
+
+def list_scenarios(root: Path = SCENARIO_DIR) -> list[str]:
+    return sorted(p.stem for p in root.glob("*.toml"))
+
+
+__all__ = [
+    "SpecError", "MotorSpec", "PidSpec", "EncoderSpec", "ImuSpec", "GnssSpec", "ReferenceSpec",
+    "SensorSpec", "Platform", "Terrain", "FrictionPatch", "Segment", "CommandSpec", "Scenario",
+    "build", "load_platform", "load_terrain", "load_scenario", "scenario_from_dict", "replace",
+    "to_dict", "list_scenarios", "parse_override", "scenario_data",
+]
+_ = types  # keep import for type evaluation of PEP 604 unions on 3.11
