@@ -266,9 +266,9 @@ class Terrain:
     mu_op: float = 0.3093
     mu_lat_ratio: float = 1.0
     shear_modulus: float = 0.00054  # K [m]
+    shear_modulus_lat_ratio: float = 1.0  # K_lat / K (testbed tire law; 1 = isotropic)
     rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl)
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
-    ramp_start: float = 0.5  # x where the ramp begins [m]
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
     friction_patches: tuple[FrictionPatch, ...] = ()
     source: str = ""
@@ -279,6 +279,7 @@ class Terrain:
         "mu_op": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_lat_ratio": (lambda x: 0.1 < x < 5, "in (0.1, 5)"),
         "shear_modulus": (_positive, "> 0 m"),
+        "shear_modulus_lat_ratio": (lambda x: 0.2 < x < 5, "in (0.2, 5)"),
         "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
         "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),
         "slip_velocity_eps": (_positive, "> 0"),

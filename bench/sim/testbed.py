@@ -1,0 +1,302 @@
+"""The pybullet skid-steer testbed: one vehicle built from a Platform spec, one ground plane
+(tilted for ramps), our own tire-ground tangential forces, per-side PID + DC motors.
+
+What Bullet does: rigid-body chassis motion in 3-D, normal loads through soft sphere-plane
+contacts under each wheel (load transfer on ramps and in turns), gravity.  What we do each
+step: read the contact points and normal forces, compute the sliding velocity of each contact,
+the tangential force of the terrain's tire law (``bench.sim.tire``), apply the summed force and
+moment to the chassis, and integrate each side's wheel spin with the motor and PID
+(``bench.sim.drive``) semi-implicitly (linearised in the wheel speed, so stiff tire and
+back-EMF slopes stay stable at the physics step).
+
+Both wheels of a side are chained (one spin state per side), as on the P3-AT, DUBHE and Yi's
+robot.  The wheel spin is not a Bullet joint: wheels are sphere colliders on fixed links, so
+Bullet's solver never sees wheel rotation (DESIGN.md testbed notes: Bullet's own wheel
+friction is heading dependent and unusable).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+import pybullet as p
+
+from bench.sim.commands import wheel_reference
+from bench.sim.drive import MotorConstants, SidePid, motor_side_torque
+from bench.sim.tire import friction_coefficient, tire_force
+from bench.spec import Scenario
+
+GRAVITY = 9.81
+CONTACT_STIFFNESS_PER_KG = 3300.0  # N/m per kg of vehicle: 1e5 for the P3-AT (DESIGN.md)
+CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
+M_EFF_FRACTION = 0.13  # effective mass of one contact for the force-slope cap (4 kg of 30.6 kg)
+SETTLE_TIME = 0.5  # s of settling on the ground before t = 0
+WHEEL_ORDER = ("fl", "rl", "fr", "rr")  # link index 0..3; sides: 0,1 left; 2,3 right
+
+# physics-rate record columns
+REC = (
+    "t", "px", "py", "pz", "qx", "qy", "qz", "qw", "vx", "vy", "vz", "wx", "wy", "wz",
+    "wl", "wr", "th_l", "th_r", "tau_l", "tau_r", "i_l", "i_r", "ref_l", "ref_r",
+    "n_fl", "n_rl", "n_fr", "n_rr",
+)
+COL = {name: i for i, name in enumerate(REC)}
+
+
+@dataclass(frozen=True)
+class PhysicsTrace:
+    """Everything recorded at the physics rate (world-frame CoM state, wheels, drive)."""
+
+    data: np.ndarray  # (n_steps + 1, len(REC))
+    cg_offset: tuple[float, float, float]  # CoM in the base link frame
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.data[:, COL[name]]
+
+
+def _quat_about_y(angle: float) -> tuple[float, float, float, float]:
+    return (0.0, math.sin(angle / 2), 0.0, math.cos(angle / 2))
+
+
+def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float, float]]:
+    plat, terr = scn.platform, scn.terrain
+    dt = scn.dt
+    p.setGravity(0, 0, -GRAVITY, physicsClientId=cid)
+    p.setPhysicsEngineParameter(
+        fixedTimeStep=dt, numSubSteps=0, numSolverIterations=20, deterministicOverlappingPairs=1,
+        physicsClientId=cid,
+    )
+    # ground: a plane rising along +x with the terrain slope (ramps of Yu 2010 Figs. 18-20)
+    tilt = _quat_about_y(-terr.slope)
+    plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+    ground = p.createMultiBody(0, plane, -1, (0, 0, 0), tilt, physicsClientId=cid)
+    p.changeDynamics(ground, -1, lateralFriction=1.0, physicsClientId=cid)
+
+    m_total = plat.total_mass
+    m_wheel = 0.02 * m_total
+    m_base = m_total - 4 * m_wheel
+    a, b, r = plat.wheelbase / 2, plat.track / 2, plat.wheel_radius
+    box = p.createCollisionShape(
+        p.GEOM_BOX, halfExtents=(plat.body_length / 2, plat.body_width / 2, plat.body_height / 2),
+        collisionFramePosition=(0, 0, plat.body_height / 2 + 0.25 * r), physicsClientId=cid,
+    )
+    sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=cid)
+    # base link frame: geometric centre at axle height; CoM offset from it
+    cg = (plat.cg_offset_x, plat.cg_offset_y, plat.cg_height - r)
+    links = [(a, b, 0.0), (-a, b, 0.0), (a, -b, 0.0), (-a, -b, 0.0)]
+    # place on the tilted plane: the link origin r above the surface along its normal
+    n = (-math.sin(terr.slope), 0.0, math.cos(terr.slope))  # plane normal after the tilt
+    start = (n[0] * (r + 0.002), 0.0, n[2] * (r + 0.002))
+    yaw = scn.initial_yaw
+    q_yaw = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    orn = p.multiplyTransforms((0, 0, 0), tilt, (0, 0, 0), q_yaw)[1]
+    robot = p.createMultiBody(
+        baseMass=m_base, baseCollisionShapeIndex=box, baseVisualShapeIndex=-1,
+        basePosition=start, baseOrientation=orn,
+        baseInertialFramePosition=cg, baseInertialFrameOrientation=(0, 0, 0, 1),
+        linkMasses=[m_wheel] * 4, linkCollisionShapeIndices=[sphere] * 4,
+        linkVisualShapeIndices=[-1] * 4, linkPositions=links,
+        linkOrientations=[(0, 0, 0, 1)] * 4,
+        linkInertialFramePositions=[(0, 0, 0)] * 4, linkInertialFrameOrientations=[(0, 0, 0, 1)] * 4,
+        linkParentIndices=[0] * 4, linkJointTypes=[p.JOINT_FIXED] * 4, linkJointAxis=[(0, 1, 0)] * 4,
+        physicsClientId=cid,
+    )
+    # yaw inertia of the whole vehicle = platform's; wheels carry m_wheel (a^2 + b^2) each
+    i_wheel_own = 0.4 * m_wheel * r * r
+    izz_base = plat.yaw_inertia - 4 * (m_wheel * (a * a + b * b) + i_wheel_own)
+    if izz_base <= 0:
+        raise ValueError(f"platform {plat.name}: yaw_inertia {plat.yaw_inertia} too small for its geometry")
+    ixx = m_base * (plat.body_width**2 + plat.body_height**2) / 12
+    iyy = m_base * (plat.body_length**2 + plat.body_height**2) / 12
+    p.changeDynamics(
+        robot, -1, localInertiaDiagonal=(ixx, iyy, izz_base), linearDamping=0.0, angularDamping=0.0,
+        lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0, physicsClientId=cid,
+    )
+    k_c = CONTACT_STIFFNESS_PER_KG * m_total
+    c_c = CONTACT_DAMPING_PER_KG * m_total
+    for li in range(4):
+        p.changeDynamics(
+            robot, li, lateralFriction=0.0, spinningFriction=0.0, rollingFriction=0.0,
+            contactStiffness=k_c, contactDamping=c_c, linearDamping=0.0, angularDamping=0.0,
+            physicsClientId=cid,
+        )
+    return ground, robot, cg
+
+
+def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | None = None) -> PhysicsTrace:
+    """Step the testbed through the scenario; return the physics-rate trace."""
+    plat, terr = scn.platform, scn.terrain
+    dt = scn.dt
+    n_steps = int(round(scn.duration / dt))
+    n_settle = int(round(SETTLE_TIME / dt))
+    t_grid = np.arange(n_steps + 1) * dt
+    t_cmd = t_grid - plat.actuator_delay  # actuator delay: the PID sees the command late
+    ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
+    ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
+    accel_w = scn.command.accel / plat.wheel_radius if scn.command.accel > 0 else math.inf
+
+    cid = p.connect(p.DIRECT)
+    try:
+        ground, robot, cg = _build_world(scn, cid)
+        motor = MotorConstants.from_spec(plat.motor)
+        pid = [SidePid(plat.pid, motor.v_max), SidePid(plat.pid, motor.v_max)]
+        r_eff = (plat.wheel_radius * plat.wheel_radius_scale_l, plat.wheel_radius * plat.wheel_radius_scale_r)
+        i_side = 2.0 * plat.wheel_inertia
+        janosi = terr.model == "janosi"
+        K, patch, eps = terr.shear_modulus, plat.patch_length - plat.patch_gap, terr.slip_velocity_eps
+        patch = max(patch, 1e-3)  # Yu's L - C: the front plus rear patch extent of one side
+        patch_wheel = patch / 2.0  # one wheel's patch length (L - C)/2
+        k_max = M_EFF_FRACTION * plat.total_mass / dt
+        mu_roll = terr.rolling_resistance
+        k_lat = terr.shear_modulus_lat_ratio
+        patches = terr.friction_patches
+        out = np.empty((n_steps + 1, len(REC)))
+        w = [0.0, 0.0]
+        th = [0.0, 0.0]
+        tau = [0.0, 0.0]
+        cur = [0.0, 0.0]
+        refs = [0.0, 0.0]
+        normal = [0.0] * 4
+        cpos: list = [None] * 4
+        cnorm: list = [None] * 4
+
+        getpos = p.getBasePositionAndOrientation
+        getvel = p.getBaseVelocity
+        getcp = p.getContactPoints
+        force = p.applyExternalForce
+        torque_fn = p.applyExternalTorque
+        step = p.stepSimulation
+        mat = p.getMatrixFromQuaternion
+        WORLD = p.WORLD_FRAME
+
+        total = n_settle + n_steps
+        for k in range(-n_settle, n_steps + 1):
+            pos, orn = getpos(robot, physicsClientId=cid)
+            lin, ang = getvel(robot, physicsClientId=cid)
+            if k == 0 and scn.initial_speed != 0.0:
+                R0 = mat(orn)
+                v0 = scn.initial_speed
+                lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
+                p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
+                # PID integrators preloaded with the voltage that holds this speed on this slope
+                weight = plat.total_mass * GRAVITY
+                for s in (0, 1):
+                    w[s] = v0 / r_eff[s]
+                    hold = (0.5 * weight * math.sin(terr.slope)
+                            + 0.5 * terr.rolling_resistance * weight * math.cos(terr.slope)) * r_eff[s]
+                    amps = hold / (motor.n * motor.gear * motor.eff * motor.K_T)
+                    volt = motor.K_B * motor.gear * w[s] + motor.R_a * amps
+                    pid[s].integ = volt / max(plat.pid.ki, 1e-9)
+                    pid[s].prev_ref = refs[s] = w[s]
+            # references (rate-limited)
+            if k >= 0:
+                targets = (ref_l[k], ref_r[k])
+                for s in (0, 1):
+                    d = targets[s] - refs[s]
+                    lim = accel_w * dt
+                    refs[s] += d if abs(d) <= lim else math.copysign(lim, d)
+            R = mat(orn)
+            fwd = (R[0], R[3], R[6])
+            for i in range(4):
+                normal[i] = 0.0
+            for c in getcp(bodyA=robot, bodyB=ground, physicsClientId=cid):
+                li = c[3]
+                if li >= 0:
+                    normal[li] += c[9]
+                    cpos[li] = c[6]
+                    cnorm[li] = c[7]
+            fx = fy = fz = 0.0
+            mx = my = mz = 0.0
+            t_now = k * dt
+            for s in (0, 1):
+                volt = pid[s](refs[s], w[s], dt)
+                tq, cu, dtq = motor_side_torque(motor, volt, w[s])
+                mu_base = friction_coefficient(terr.mu_sa, terr.mu_op, tq, w[s])
+                u = r_eff[s] * w[s]
+                f_lon_sum = 0.0
+                stiff_sum = 0.0
+                n_side = 0.0
+                wheel_f = []
+                for i in (2 * s, 2 * s + 1):
+                    nf = normal[i]
+                    if nf <= 0.0 or cpos[i] is None:
+                        continue
+                    n_side += nf
+                    cx, cy_, cz = cpos[i]
+                    nx, ny, nz = cnorm[i]
+                    rx, ry, rz = cx - pos[0], cy_ - pos[1], cz - pos[2]
+                    # velocity of the chassis material point at the contact
+                    vcx = lin[0] + ang[1] * rz - ang[2] * ry
+                    vcy = lin[1] + ang[2] * rx - ang[0] * rz
+                    vcz = lin[2] + ang[0] * ry - ang[1] * rx
+                    # wheel frame on the contact plane
+                    dot = fwd[0] * nx + fwd[1] * ny + fwd[2] * nz
+                    ex, ey, ez = fwd[0] - dot * nx, fwd[1] - dot * ny, fwd[2] - dot * nz
+                    en = math.sqrt(ex * ex + ey * ey + ez * ez)
+                    ex, ey, ez = ex / en, ey / en, ez / en
+                    lx, ly, lz = ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+                    v_lon = vcx * ex + vcy * ey + vcz * ez
+                    v_lat = vcx * lx + vcy * ly + vcz * lz
+                    mu = mu_base
+                    if patches:
+                        for fp in patches:
+                            if fp.x_min <= cx <= fp.x_max and fp.y_min <= cy_ <= fp.y_max:
+                                scale = fp.mu_scale
+                                if fp.t_period > 0:
+                                    scale = 1.0 + (fp.mu_scale - 1.0) * 0.5 * (1 - math.cos(2 * math.pi * t_now / fp.t_period))
+                                mu *= scale
+                    s_lon = v_lon - u
+                    f_lon, f_lat = tire_force(s_lon, v_lat, u, v_lon, nf, mu, terr.mu_lat_ratio,
+                                              janosi, K, k_lat, patch_wheel, eps, k_max)
+                    # d F_lon / d u by a one-sided difference (the law is smooth)
+                    h = 1e-4
+                    f_lon2, _ = tire_force(s_lon - h, v_lat, u + h, v_lon, nf, mu, terr.mu_lat_ratio,
+                                           janosi, K, k_lat, patch_wheel, eps, k_max)
+                    stiff = max((f_lon2 - f_lon) / h, 0.0)
+                    f_lon_sum += f_lon
+                    stiff_sum += stiff
+                    wheel_f.append((rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff))
+                # rolling resistance torque on the side's wheels, smooth sign
+                sgn = math.tanh(u / 0.01)
+                t_roll = mu_roll * n_side * r_eff[s] * sgn
+                dt_roll = mu_roll * n_side * r_eff[s] * (1 - sgn * sgn) * r_eff[s] / 0.01
+                rr = r_eff[s]
+                num = tq - rr * f_lon_sum - t_roll
+                den = i_side - dt * dtq + dt * rr * rr * stiff_sum + dt * dt_roll
+                dw = dt * num / den
+                for (rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff) in wheel_f:
+                    fl = f_lon + stiff * rr * dw  # force consistent with the new wheel speed
+                    gx = fl * ex + f_lat * lx
+                    gy = fl * ey + f_lat * ly
+                    gz = fl * ez + f_lat * lz
+                    fx += gx
+                    fy += gy
+                    fz += gz
+                    mx += ry * gz - rz * gy
+                    my += rz * gx - rx * gz
+                    mz += rx * gy - ry * gx
+                w[s] += dw
+                th[s] += w[s] * dt
+                tau[s], cur[s] = tq, cu
+            if k >= 0:
+                out[k] = (
+                    t_now, pos[0], pos[1], pos[2], orn[0], orn[1], orn[2], orn[3],
+                    lin[0], lin[1], lin[2], ang[0], ang[1], ang[2],
+                    w[0], w[1], th[0], th[1], tau[0], tau[1], cur[0], cur[1], refs[0], refs[1],
+                    normal[0], normal[1], normal[2], normal[3],
+                )
+                if k == n_steps:
+                    break
+                if progress is not None and k % 2000 == 0:
+                    progress((k + n_settle) / total)
+            else:
+                th[0] = th[1] = 0.0
+            force(robot, -1, (fx, fy, fz), pos, WORLD, physicsClientId=cid)
+            torque_fn(robot, -1, (mx, my, mz), WORLD, physicsClientId=cid)
+            step(physicsClientId=cid)
+    finally:
+        p.disconnect(cid)
+    if progress is not None:
+        progress(1.0)
+    return PhysicsTrace(out, cg)

@@ -1,0 +1,87 @@
+"""Tangential tire-ground force laws of the testbed (per wheel, scalar, called every step).
+
+Bullet's own wheel friction is switched off (its friction rows are fixed to world axes and make
+turning depend on the world heading, DESIGN.md "Testbed notes"); the tangential force at each
+wheel contact comes from here.  Two laws, chosen by ``Terrain.model``:
+
+* ``coulomb``: smooth Coulomb friction, ``F = -mu N s / sqrt(|s|^2 + eps^2)`` on the sliding
+  velocity ``s`` of the contact point (the law of Caracciolo/Kozlowski that Yu 2010 criticises).
+* ``janosi``: Janosi-Hanamoto shear stress ``tau = p mu (1 - exp(-j/K))`` (Yu 2010 eq. (7),
+  Wang 2015 eq. (17)) over a contact patch of length ``Lp``: the shear displacement grows
+  linearly from the leading edge, ``j(x) = |s| x / v_ref`` with ``v_ref = max(|r w|, |v_lon|)``
+  (the rolled distance), so the patch average is
+
+      F = mu N [1 - (K / j_max) (1 - exp(-j_max / K))],  j_max = |s| Lp / v_ref,
+
+  directed against the sliding velocity.  It depends on the slip *ratio*, not the slip speed,
+  which is what makes chi nearly speed-independent (Wang 2015 Fig. 12b).
+
+``mu_sa``/``mu_op`` (Yu 2010 Sec. V-A): friction when the motor drives / brakes the wheel, blended
+smoothly on the sign of torque x wheel speed.  Lateral friction is ``mu * mu_lat_ratio``.
+The force magnitude is capped at ``k_max |s|`` (k_max = m_eff/dt) so the explicit coupling to
+Bullet's chassis integration stays stable at tiny slips (DESIGN.md testbed notes).
+"""
+from __future__ import annotations
+
+import math
+
+
+def friction_coefficient(mu_sa: float, mu_op: float, torque: float, w: float, scale: float = 0.05) -> float:
+    """Yu's mu_sa when the motor drives the wheel (torque and speed of one sign), mu_op when it brakes."""
+    drive = 0.5 * (1.0 + math.tanh(torque * w / scale))
+    return mu_op + (mu_sa - mu_op) * drive
+
+
+def janosi_fraction(j_max: float, K: float) -> float:
+    """Patch average of 1 - exp(-j/K) for j uniform in [0, j_max] (exact; series near 0)."""
+    z = j_max / K
+    if z < 1e-6:
+        return 0.5 * z
+    return 1.0 - (1.0 - math.exp(-z)) / z
+
+
+def tire_force(
+    s_lon: float,
+    s_lat: float,
+    u: float,
+    v_lon: float,
+    normal: float,
+    mu: float,
+    mu_lat_ratio: float,
+    model_janosi: bool,
+    K: float,
+    K_lat_ratio: float,
+    patch: float,
+    eps: float,
+    k_max: float,
+) -> tuple[float, float]:
+    """Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact.
+
+    s_lon, s_lat: sliding velocity of the contact point (v_lon - r w, v_lat) [m/s];
+    u: tread speed r w; v_lon: longitudinal velocity of the contact point; normal: N [N] (>= 0).
+    Janosi: shear displacement normalised per direction, ``z_i = j_i / K_i`` with
+    ``K_lat = K * K_lat_ratio`` (tires shear more easily sideways); the force follows the normalised
+    displacement while the patch adheres and turns to the sliding direction as it saturates
+    (brush-model behaviour: Coulomb direction in full sliding).
+    """
+    if normal <= 0.0:
+        return 0.0, 0.0
+    s = math.hypot(s_lon, s_lat)
+    if s < 1e-12:
+        return 0.0, 0.0
+    if model_janosi:
+        v_ref = max(abs(u), math.hypot(v_lon, s_lat), eps)
+        z_lon = s_lon * patch / (v_ref * K)
+        z_lat = s_lat * patch / (v_ref * K * K_lat_ratio)
+        z = math.hypot(z_lon, z_lat)
+        frac = janosi_fraction(z, 1.0)
+        d_lon = (1.0 - frac) * z_lon / z + frac * s_lon / s
+        d_lat = (1.0 - frac) * z_lat / z + frac * s_lat / s
+    else:
+        frac = s / math.sqrt(s * s + eps * eps)
+        d_lon, d_lat = s_lon / s, s_lat / s
+    mag = mu * normal * frac
+    cap = k_max * s
+    if mag > cap:
+        mag = cap
+    return -mag * d_lon, -mag * mu_lat_ratio * d_lat
