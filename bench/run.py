@@ -127,7 +127,9 @@ class Run:
         h = hashlib.sha256()
         for c in self.data.columns:
             h.update(c.encode())
-            h.update(np.ascontiguousarray(self.data[c].to_numpy(dtype=np.float64)).tobytes())
+            v = self.data[c].to_numpy(dtype=np.float64)
+            v = np.where(np.isnan(v), np.nan, v)  # one canonical NaN: payload/sign bits are not data
+            h.update(np.ascontiguousarray(v).tobytes())
         meta = {k: v for k, v in self.meta.items() if k not in ("source_file", "truth_withheld")}
         h.update(json.dumps(meta, sort_keys=True, default=str).encode())
         return h.hexdigest()
@@ -149,7 +151,7 @@ class Run:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
         os.close(fd)
         try:
-            pq.write_table(table, tmp, compression="zstd", write_statistics=False, store_schema=False)
+            pq.write_table(table, tmp, compression="zstd", write_statistics=False)
             os.replace(tmp, path)
         finally:
             if os.path.exists(tmp):

@@ -139,6 +139,7 @@ def assemble_run(tr: PhysicsTrace, scn: Scenario, seed: int) -> Run:
         "dt": scn.dt,
         "testbed_version": TESTBED_VERSION,
     }
+    meta = json.loads(json.dumps(meta))  # plain JSON types, as a Parquet round trip gives back
     return Run(pd.DataFrame(cols), meta)
 
 

@@ -16,8 +16,9 @@ from bench.spec import CommandSpec, Platform, SpecError
 RPM_TO_RAD_S = 2.0 * math.pi / 60.0
 
 
-def _piecewise(t: np.ndarray, cmd: CommandSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Values (a, b) of the segment active at each t (segment i holds until t_end[i])."""
+def _piecewise(t: np.ndarray, cmd: CommandSpec, fill_b: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Values (a, b) of the segment active at each t (segment i holds through t_end[i]); after
+    the last segment (0, fill_b)."""
     if not cmd.segments:
         raise SpecError("<command>", "command.segments", (), "at least one segment is required")
     t_end = np.array([s.t_end for s in cmd.segments])
@@ -25,10 +26,10 @@ def _piecewise(t: np.ndarray, cmd: CommandSpec) -> tuple[np.ndarray, np.ndarray]
         raise SpecError("<command>", "command.segments", t_end.tolist(), "t_end must increase")
     a = np.array([s.a for s in cmd.segments])
     b = np.array([s.b for s in cmd.segments])
-    idx = np.searchsorted(t_end, t, side="right")
+    idx = np.searchsorted(t_end, t, side="left")
     inside = idx < len(t_end)
     idx = np.minimum(idx, len(t_end) - 1)
-    return np.where(inside, a[idx], 0.0), np.where(inside, b[idx], 0.0)
+    return np.where(inside, a[idx], 0.0), np.where(inside, b[idx], fill_b)
 
 
 def lemniscate_v_radius(t: np.ndarray, t0: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -85,15 +86,16 @@ def wheel_reference(t: np.ndarray, cmd: CommandSpec, platform: Platform, seed: i
             return a / r, b / r
         return a, b
     if cmd.kind == "v_radius":
-        v, radius = _piecewise(t, cmd)
+        v, radius = _piecewise(t, cmd, fill_b=np.inf)
         vl, vr = inverse_v_radius(v, radius, B)
         return vl / r, vr / r
     if cmd.kind == "v_curvature_ratio":
         # v is the outer (faster) tread speed, so that curvature ratio 0 (pure rotation) is defined
-        v, lam = _piecewise(t, cmd)
+        v, lam = _piecewise(t, cmd, fill_b=np.inf)
         # (v_l + v_r)/(v_r - v_l) = lam, max(|v_l|, |v_r|) = v, CCW turn (v_r >= v_l)
         vr = v
-        vl = v * (lam - 1.0) / (lam + 1.0)
+        with np.errstate(invalid="ignore"):
+            vl = np.where(np.isinf(lam), v, v * (lam - 1.0) / (lam + 1.0))
         return vl / r, vr / r
     if cmd.kind == "rotation":
         v = np.full_like(t, cmd.v)

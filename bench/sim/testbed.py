@@ -21,13 +21,32 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import pybullet as p
 
 from bench.sim.commands import wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_side_torque
 from bench.sim.tire import friction_coefficient, tire_force
 from bench.spec import Scenario
 
+
+
+def _import_pybullet():
+    """Import pybullet with its build banner sent to stderr (it prints on stdout, which would
+    corrupt ``--json`` output)."""
+    import os
+    import sys
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        import pybullet
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    return pybullet
+
+
+p = _import_pybullet()
 GRAVITY = 9.81
 CONTACT_STIFFNESS_PER_KG = 3300.0  # N/m per kg of vehicle: 1e5 for the P3-AT (DESIGN.md)
 CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
