@@ -200,4 +200,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # run through the imported module so that commands registered by bench.cli_more land in the
+    # same COMMANDS table (``python -m bench.cli`` would otherwise have two copies of this module)
+    from bench.cli import main as _main
+
+    sys.exit(_main())

@@ -1,0 +1,109 @@
+"""CLI commands for reproduction and regression: ``reproduce``, ``compare``.
+
+Registered into :data:`bench.cli.COMMANDS` on import.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Mapping
+
+from bench.cli import _progress, command
+
+
+# ------------------------------------------------------------------------------------------ reproduce
+def _repro_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml); default all")
+    p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example and the real data")
+    p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
+    p.add_argument("--results", type=Path, default=None, help="output folder (default results/)")
+
+
+EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, runner) registered by features
+
+
+def register_extra(name: str):
+    def deco(fn):
+        EXTRAS[name] = fn
+        return fn
+    return deco
+
+
+def _reproduce(a: argparse.Namespace) -> int:
+    from bench import reproduce as R
+
+    results_dir = a.results or R.RESULTS
+    papers = [p for p in a.papers if p not in EXTRAS] or None
+    extras = [p for p in a.papers if p in EXTRAS]
+    if a.all or not a.papers:
+        extras = list(EXTRAS)
+    t0 = time.perf_counter()
+    with _progress() as prog:
+        task = prog.add_task("runs", total=None)
+
+        def progress(done: int, total: int) -> None:
+            prog.update(task, completed=done, total=total, description=f"simulating {done}/{total}")
+
+        def log(msg: str) -> None:
+            prog.console.print(msg)
+
+        if papers is not None or a.all or not a.papers:
+            R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
+                        results_dir=results_dir, log=log, progress=progress)
+        for name in extras:
+            log(f"extra: {name}")
+            EXTRAS[name](results_dir, a.quick)
+    print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
+    return 0
+
+
+command("reproduce", "regenerate paper tables, figures, REPORT.md and metrics.json")((_repro_args, _reproduce))
+
+
+# ------------------------------------------------------------------------------------------ compare
+def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Metrics of ``base`` that moved beyond their tolerance in ``new`` (or vanished / became NaN)."""
+    out = []
+    bm, nm = base.get("metrics", {}), new.get("metrics", {})
+    for mid, b in bm.items():
+        bv = b["value"]
+        tol = b.get("tolerance", {})
+        allowed = max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(bv))
+        if mid not in nm:
+            out.append({"metric": mid, "base": bv, "new": None, "allowed": allowed, "why": "missing in new"})
+            continue
+        nv = nm[mid]["value"]
+        if isinstance(nv, float) and math.isnan(nv) and not (isinstance(bv, float) and math.isnan(bv)):
+            out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed, "why": "became NaN"})
+        elif abs(nv - bv) > allowed:
+            out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
+                        "why": f"moved by {nv - bv:+.4g} (allowed ±{allowed:.3g})"})
+    return out
+
+
+def _cmp_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("base", type=Path)
+    p.add_argument("new", type=Path)
+
+
+def _compare(a: argparse.Namespace) -> int:
+    base = json.loads(a.base.read_text())
+    new = json.loads(a.new.read_text())
+    moved = compare_metrics(base, new)
+    if not moved:
+        print(f"no metric moved beyond its tolerance ({len(base.get('metrics', {}))} compared)")
+        return 0
+    for m in moved:
+        print(f"REGRESSION {m['metric']}: {m['base']} -> {m['new']} ({m['why']})")
+    print(f"{len(moved)} metric(s) moved beyond tolerance", file=sys.stderr)
+    return 1
+
+
+command("compare", "list metrics that moved beyond tolerance; non-zero exit on regression")((_cmp_args, _compare))

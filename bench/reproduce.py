@@ -1,0 +1,394 @@
+"""Paper reproduction: tables reproduced beside the published numbers, claims with verdicts.
+
+Each paper declares its experiments in ``scenarios/papers/<paper>.toml``::
+
+    paper = "wang2015"
+    citation = "T. Wang et al., Sensors 15(5), 2015"
+    module = "methods.wang2015_repro"          # where the compute functions live
+
+    [[tables]]
+    id = "table3"
+    title = "ICR coefficient chi per curvature ratio"
+    source = "Wang 2015 Table 3"
+    compute = "table3"                          # module.table3(ctx) -> dict[str, float]
+    note = "..."                                # optional, printed beside the table
+      [[tables.rows]]
+      metric = "chi_lambda0"                    # key returned by compute
+      label = "chi at curvature ratio 0"
+      published = 1.4662
+      tolerance_rel = 0.05                      # or tolerance_abs; none -> no per-row verdict
+
+    [[claims]]
+    id = "chi_decreases"
+    text = "chi decreases as the curvature ratio grows"
+    source = "Wang 2015 Sec. 3.4"
+    kind = "trend"                              # ordering | ratio | trend | within | flag
+    series = ["table3.chi_lambda0", "table3.chi_lambda1"]
+    direction = "decreasing"
+    tolerance = 0.01
+
+Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
+A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,
+figure and note registration) and returns its metrics.  Verdicts are computed from the numbers;
+nothing is written by hand.  Every file is written atomically.
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import platform as _platform
+import subprocess
+import time
+import tomllib
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+from bench.report.io import atomic_write_json, atomic_write_text
+from bench.runner import REPO, Runner
+from bench.spec import SCENARIO_DIR, SpecError
+
+PAPERS_DIR = SCENARIO_DIR / "papers"
+RESULTS = REPO / "results"
+CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
+
+
+@dataclass
+class Context:
+    """What a compute function gets: simulation through the cache, seeds, output folder."""
+
+    paper: str
+    runner: Runner
+    out_dir: Path
+    quick: bool = False
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    figures: list[tuple[str, str]] = field(default_factory=list)
+    notes: dict[str, str] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def simulate(self, scn: Any, seed: int = 0):
+        return self.runner.simulate(scn, seed)
+
+    def simulate_many(self, requests):
+        return self.runner.simulate_many(requests)
+
+    def figure(self, path: Path, caption: str) -> None:
+        self.figures.append((str(Path(path).relative_to(self.out_dir.parent)), caption))
+
+    def note(self, key: str, text: str) -> None:
+        """Attach an explanation to a table or claim id (shown beside it in the report)."""
+        self.notes[key] = text
+
+
+# ----------------------------------------------------------------------------------- declarations
+def load_paper(name_or_path: str | Path) -> dict[str, Any]:
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = PAPERS_DIR / f"{name_or_path}.toml"
+    if not path.is_file():
+        raise SpecError(path, "<file>", str(path), "no such paper declaration")
+    with open(path, "rb") as fh:
+        try:
+            decl = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    for key in ("paper", "module", "tables"):
+        if key not in decl:
+            raise SpecError(path, key, None, "required field is missing")
+    for i, c in enumerate(decl.get("claims", [])):
+        if c.get("kind") not in CLAIM_KINDS:
+            raise SpecError(path, f"claims[{i}].kind", c.get("kind"), f"one of {CLAIM_KINDS}")
+    decl["_path"] = str(path)
+    return decl
+
+
+def list_papers() -> list[str]:
+    return sorted(p.stem for p in PAPERS_DIR.glob("*.toml"))
+
+
+# ----------------------------------------------------------------------------------- verdicts
+def _fmt(x: Any) -> str:
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, (int, float)):
+        if x is None or (isinstance(x, float) and math.isnan(x)):
+            return "n/a"
+        ax = abs(x)
+        if ax != 0 and (ax < 1e-3 or ax >= 1e5):
+            return f"{x:.3e}"
+        return f"{x:.4g}"
+    return "n/a" if x is None else str(x)
+
+
+def row_verdict(reproduced: float | None, row: Mapping[str, Any]) -> str:
+    pub = row.get("published")
+    if reproduced is None or (isinstance(reproduced, float) and math.isnan(reproduced)):
+        return "not reproduced"
+    if pub is None:
+        return "—"
+    if "tolerance_abs" in row:
+        ok = abs(reproduced - pub) <= row["tolerance_abs"]
+        return f"{'matches' if ok else 'differs'} (|Δ| {'≤' if ok else '>'} {row['tolerance_abs']})"
+    if "tolerance_rel" in row:
+        rel = abs(reproduced - pub) / max(abs(pub), 1e-12)
+        ok = rel <= row["tolerance_rel"]
+        return f"{'matches' if ok else 'differs'} ({rel:.0%} {'≤' if ok else '>'} {row['tolerance_rel']:.0%})"
+    return "—"
+
+
+def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tuple[bool | None, str]:
+    """(holds, measured-numbers text). ``None`` when a metric is missing."""
+    def get(mid: str) -> float | None:
+        v = metrics.get(mid)
+        return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
+
+    kind = claim["kind"]
+    if kind == "ordering":
+        ids = claim["metrics"]
+        vals = [get(m) for m in ids]
+        if any(v is None for v in vals):
+            return None, "missing metric"
+        ok = all(a < b for a, b in zip(vals, vals[1:]))
+        return ok, " < ".join(f"{m.split('.')[-1]} = {_fmt(v)}" for m, v in zip(ids, vals))
+    if kind == "ratio":
+        n, d = get(claim["num"]), get(claim["den"])
+        if n is None or d is None or d == 0:
+            return None, "missing metric"
+        r = n / d
+        op, val = claim.get("op", "<="), float(claim["value"])
+        ok = {"<": r < val, "<=": r <= val, ">": r > val, ">=": r >= val}[op]
+        return ok, f"{claim['num'].split('.')[-1]} / {claim['den'].split('.')[-1]} = {_fmt(n)} / {_fmt(d)} = {_fmt(r)} (claim: {op} {val})"
+    if kind == "trend":
+        vals = [get(m) for m in claim["series"]]
+        if any(v is None for v in vals):
+            return None, "missing metric"
+        tol = float(claim.get("tolerance", 0.0))
+        sign = -1 if claim.get("direction", "decreasing") == "decreasing" else 1
+        ok = all(sign * (b - a) >= -tol for a, b in zip(vals, vals[1:])) and sign * (vals[-1] - vals[0]) > 0
+        return ok, "series: " + ", ".join(_fmt(v) for v in vals) + f" ({claim.get('direction', 'decreasing')}, tolerance {tol})"
+    if kind == "within":
+        v = get(claim["metric"])
+        if v is None:
+            return None, "missing metric"
+        target = float(claim["value"])
+        if "tolerance_abs" in claim:
+            ok = abs(v - target) <= claim["tolerance_abs"]
+            return ok, f"{_fmt(v)} vs {target} ± {claim['tolerance_abs']}"
+        tol = float(claim.get("tolerance_rel", 0.1))
+        ok = abs(v - target) <= tol * abs(target)
+        return ok, f"{_fmt(v)} vs {target} ± {tol:.0%}"
+    if kind == "flag":
+        v = get(claim["metric"])
+        if v is None:
+            return None, "missing metric"
+        return bool(v) == bool(claim.get("expect", True)), f"{claim['metric'].split('.')[-1]} = {_fmt(bool(v))}"
+    raise ValueError(f"unknown claim kind {kind}")
+
+
+# ----------------------------------------------------------------------------------- running
+@dataclass
+class PaperResult:
+    paper: str
+    decl: dict[str, Any]
+    metrics: dict[str, float]
+    tables: list[dict[str, Any]]
+    claims: list[dict[str, Any]]
+    figures: list[tuple[str, str]]
+    notes: dict[str, str]
+    seconds: float
+    info: dict[str, Any]
+
+
+def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quick: bool = False,
+                    log: Callable[[str], None] = lambda s: None) -> PaperResult:
+    decl = load_paper(name)
+    paper = decl["paper"]
+    out_dir = results_dir / paper
+    ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick)
+    module = importlib.import_module(decl["module"])
+    metrics: dict[str, float] = {}
+    t0 = time.perf_counter()
+    tables = []
+    for tab in decl["tables"]:
+        log(f"{paper}: {tab['id']} — {tab.get('title', '')}")
+        fn = getattr(module, tab["compute"])
+        got = fn(ctx) or {}
+        for k, v in got.items():
+            metrics[f"{tab['id']}.{k}"] = float(v) if isinstance(v, (int, float, bool)) else v
+        rows = []
+        for row in tab.get("rows", []):
+            rep = got.get(row["metric"])
+            rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row)})
+        tables.append({**tab, "rows_out": rows, "all_metrics": got})
+    claims = []
+    for c in decl.get("claims", []):
+        holds, text = evaluate_claim(c, metrics)
+        claims.append({**c, "holds": holds, "measured": text, "why": ctx.notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")})
+    res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
+    write_paper(res, out_dir)
+    return res
+
+
+def _table_md(tab: Mapping[str, Any], notes: Mapping[str, str]) -> str:
+    lines = [f"### {tab.get('title', tab['id'])}", "", f"Source: {tab.get('source', '')}", ""]
+    if tab["rows_out"]:
+        lines += ["| quantity | reproduced | published | verdict |", "|---|---|---|---|"]
+        for r in tab["rows_out"]:
+            lines.append(f"| {r.get('label', r['metric'])} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))} | {r['verdict']} |")
+    else:
+        lines += ["| metric | reproduced |", "|---|---|"]
+        for k, v in tab["all_metrics"].items():
+            lines.append(f"| {k} | {_fmt(v)} |")
+    for text in (tab.get("note"), notes.get(tab["id"])):
+        if text:
+            lines += ["", f"> Note: {text.strip()}"]
+    return "\n".join(lines) + "\n"
+
+
+def _table_csv(tab: Mapping[str, Any]) -> str:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(["metric", "label", "reproduced", "published", "verdict"])
+    if tab["rows_out"]:
+        for r in tab["rows_out"]:
+            w.writerow([r["metric"], r.get("label", ""), r["reproduced"], r.get("published", ""), r["verdict"]])
+    else:
+        for k, v in tab["all_metrics"].items():
+            w.writerow([k, "", v, "", ""])
+    return buf.getvalue()
+
+
+def _claims_md(res: PaperResult) -> str:
+    lines = ["| claim | source | verdict | measured | why |", "|---|---|---|---|---|"]
+    for c in res.claims:
+        v = {True: "**holds**", False: "**does not hold**", None: "not evaluated"}[c["holds"]]
+        lines.append(f"| {c['text']} | {c.get('source', '')} | {v} | {c['measured']} | {c.get('why', '')} |")
+    return "\n".join(lines) + "\n"
+
+
+def paper_markdown(res: PaperResult, link_prefix: str = "") -> str:
+    d = res.decl
+    out = [f"## {d.get('title', res.paper)}", "", f"*{d.get('citation', '')}*", ""]
+    if d.get("note"):
+        out += [f"> {d['note'].strip()}", ""]
+    for tab in res.tables:
+        out.append(_table_md(tab, res.notes))
+    out += ["### Claims", "", _claims_md(res)]
+    if res.figures:
+        out += ["### Figures", ""]
+        for path, caption in res.figures:
+            out.append(f"- [{caption}]({link_prefix}{path})")
+        out.append("")
+    return "\n".join(out)
+
+
+def write_paper(res: PaperResult, out_dir: Path) -> None:
+    for tab in res.tables:
+        atomic_write_text(out_dir / f"{tab['id']}.md", _table_md(tab, res.notes))
+        atomic_write_text(out_dir / f"{tab['id']}.csv", _table_csv(tab))
+    atomic_write_text(out_dir / "claims.md", _claims_md(res))
+    atomic_write_text(out_dir / "README.md", paper_markdown(res, link_prefix="../"))
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=REPO,
+                               capture_output=True, text=True).stdout.strip()
+        return out.stdout.strip() + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def package_versions() -> dict[str, str]:
+    from importlib import metadata
+
+    out = {"python": _platform.python_version()}
+    for pkg in ("numpy", "scipy", "pandas", "pyarrow", "pybullet", "matplotlib", "pygad", "filterpy"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def metrics_document(results: list[PaperResult], quick: bool, tolerances: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    metrics: dict[str, Any] = {}
+    for res in results:
+        rows = {f"{t['id']}.{r['metric']}": r for t in res.tables for r in t["rows_out"]}
+        default_tol = res.decl.get("regression_tolerance", {"rel": 0.05, "abs": 1e-6})
+        for mid, v in res.metrics.items():
+            if not isinstance(v, (int, float)):
+                continue
+            row = rows.get(mid, {})
+            metrics[f"{res.paper}.{mid}"] = {
+                "value": v, "published": row.get("published"),
+                "tolerance": {**default_tol, **res.decl.get("metric_tolerance", {}).get(mid, {})},
+            }
+    return {"quick": quick, "commit": git_commit(), "metrics": dict(sorted(metrics.items()))}
+
+
+def write_report(results: list[PaperResult], results_dir: Path, quick: bool, runner: Runner, seconds: float) -> Path:
+    lines = [
+        "# skidbench reproduction report", "",
+        f"Generated by `skidbench reproduce{' --quick' if quick else ''}` at commit `{git_commit()}`.",
+        f"Wall time {seconds:.1f} s; runs simulated {runner.stats['simulated']}, taken from the cache {runner.stats['cached']}.",
+        "Every number below is computed; verdicts compare it with the published value or claim. A claim that does",
+        "not hold in simulation is reported as such, with the measured numbers and the reason where known.", "",
+        "Package versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()), "",
+        "## Summary", "", "| paper | claims holding | claims not holding | time (s) |", "|---|---|---|---|",
+    ]
+    for res in results:
+        h = sum(c["holds"] is True for c in res.claims)
+        f = sum(c["holds"] is False for c in res.claims)
+        lines.append(f"| [{res.paper}](#{res.paper}) | {h} | {f} | {res.seconds:.1f} |")
+    lines.append("")
+    for res in results:
+        lines.append(f'<a id="{res.paper}"></a>')
+        lines.append(paper_markdown(res))
+        seeds = res.info.get("seeds")
+        if seeds is not None:
+            lines.append(f"Seeds: {seeds}\n")
+    path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
+    atomic_write_text(path, "\n".join(lines))
+    return path
+
+
+def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: int = 1,
+              dask_scheduler: str | None = None, results_dir: Path = RESULTS,
+              log: Callable[[str], None] = print, progress: Callable[[int, int], None] | None = None,
+              extra: Mapping[str, Callable[[Path, bool], Any]] | None = None) -> list[PaperResult]:
+    papers = papers or list_papers()
+    runner = Runner(workers=workers, dask_scheduler=dask_scheduler, progress=progress)
+    t0 = time.perf_counter()
+    results = [reproduce_paper(p, runner, results_dir, quick, log) for p in papers]
+    seconds = time.perf_counter() - t0
+    suffix = "_quick" if quick else ""
+    atomic_write_json(results_dir / f"metrics{suffix}.json", metrics_document(results, quick))
+    write_report(results, results_dir, quick, runner, seconds)
+    append_history(results_dir, results, quick, seconds)
+    return results
+
+
+def append_history(results_dir: Path, results: list[PaperResult], quick: bool, seconds: float) -> None:
+    """One JSON line per reproduce: commit, date, metrics, wall time (read by the dashboard)."""
+    entry = {
+        "commit": git_commit(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "quick": quick, "seconds": round(seconds, 3),
+        "metrics": {f"{r.paper}.{k}": v for r in results for k, v in r.metrics.items() if isinstance(v, (int, float))},
+    }
+    bench_json = REPO / ".benchmarks" / "latest.json"
+    if bench_json.is_file():
+        try:
+            b = json.loads(bench_json.read_text())
+            entry["bench"] = {x["name"]: x["stats"]["mean"] for x in b.get("benchmarks", [])}
+        except (ValueError, KeyError):
+            pass
+    path = results_dir / "history.jsonl"
+    old = path.read_text() if path.is_file() else ""
+    atomic_write_text(path, old + json.dumps(entry, sort_keys=True) + "\n")

@@ -1,0 +1,135 @@
+"""Reproduction machinery: declared tables and computed claim verdicts, metrics.json, compare,
+the run cache, atomic writes, serial vs parallel identity."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from bench import reproduce as R
+from bench.cli_more import compare_metrics
+from bench.runner import Runner
+from bench.spec import load_scenario
+
+PAPER = textwrap.dedent('''
+    paper = "fake"
+    title = "A fake paper"
+    citation = "Nobody 2026"
+    module = "tests.fixtures.fake_paper"
+
+    [[tables]]
+    id = "t1"
+    title = "Straight line"
+    source = "Table 1"
+    compute = "straight"
+      [[tables.rows]]
+      metric = "speed"
+      label = "steady speed"
+      published = 0.194
+      tolerance_rel = 0.05
+      [[tables.rows]]
+      metric = "double"
+      published = 10.0
+      tolerance_abs = 0.1
+
+    [[claims]]
+    id = "order"
+    text = "speed < double"
+    kind = "ordering"
+    metrics = ["t1.speed", "t1.double"]
+
+    [[claims]]
+    id = "ratio"
+    text = "double is 3x speed"
+    kind = "within"
+    metric = "t1.double"
+    value = 3.0
+    tolerance_rel = 0.01
+''')
+
+
+@pytest.fixture
+def paper_dir(tmp_path, monkeypatch):
+    d = tmp_path / "papers"
+    d.mkdir()
+    (d / "fake.toml").write_text(PAPER)
+    monkeypatch.setattr(R, "PAPERS_DIR", d)
+    return d
+
+
+def test_claims_are_computed_not_written(paper_dir, tmp_path):
+    runner = Runner(cache_dir=tmp_path / "cache")
+    res = R.reproduce_paper("fake", runner, tmp_path / "results")
+    speed = res.metrics["t1.speed"]
+    assert 0.18 < speed < 0.2
+    rows = {r["metric"]: r for r in res.tables[0]["rows_out"]}
+    assert rows["speed"]["verdict"].startswith("matches")
+    assert rows["double"]["verdict"].startswith("differs")
+    claims = {c["id"]: c for c in res.claims}
+    assert claims["order"]["holds"] is True
+    assert claims["ratio"]["holds"] is False and "3.0" in claims["ratio"]["measured"]
+    md = (tmp_path / "results" / "fake" / "t1.md").read_text()
+    assert "| steady speed |" in md and "0.194" in md
+
+
+def test_evaluate_claim_kinds():
+    m = {"a.x": 1.0, "a.y": 2.0, "a.z": 1.5}
+    assert R.evaluate_claim({"kind": "ordering", "metrics": ["a.x", "a.y"]}, m)[0] is True
+    assert R.evaluate_claim({"kind": "ordering", "metrics": ["a.y", "a.x"]}, m)[0] is False
+    assert R.evaluate_claim({"kind": "ratio", "num": "a.x", "den": "a.y", "op": "<=", "value": 0.5}, m)[0] is True
+    assert R.evaluate_claim({"kind": "trend", "series": ["a.y", "a.z", "a.x"], "direction": "decreasing"}, m)[0] is True
+    assert R.evaluate_claim({"kind": "trend", "series": ["a.x", "a.y"], "direction": "decreasing"}, m)[0] is False
+    assert R.evaluate_claim({"kind": "within", "metric": "a.z", "value": 1.4, "tolerance_abs": 0.2}, m)[0] is True
+    assert R.evaluate_claim({"kind": "flag", "metric": "a.x"}, m)[0] is True
+    assert R.evaluate_claim({"kind": "flag", "metric": "a.missing"}, m)[0] is None
+
+
+def test_cache_second_run_simulates_nothing(tmp_path):
+    scn = load_scenario("straight_0p2_vinyl", {"duration": 1.0})
+    r1 = Runner(cache_dir=tmp_path)
+    a = r1.simulate_many([(scn, 0), (scn, 1), (scn, 0)])
+    assert r1.stats["simulated"] == 2
+    r2 = Runner(cache_dir=tmp_path)
+    b = r2.simulate_many([(scn, 0), (scn, 1)])
+    assert r2.stats["simulated"] == 0 and r2.stats["cached"] == 2
+    assert a[0].content_hash() == b[0].content_hash()
+
+
+def test_serial_and_parallel_runs_identical(tmp_path):
+    scn = load_scenario("circle_vinyl", {"duration": 2.0})
+    reqs = [(scn, s) for s in range(3)]
+    serial = Runner(cache_dir=tmp_path / "s", workers=1).simulate_many(reqs)
+    par = Runner(cache_dir=tmp_path / "p", workers=2).simulate_many(reqs)
+    assert [r.content_hash() for r in serial] == [r.content_hash() for r in par]
+
+
+def test_compare_flags_broken_method_by_name(paper_dir, tmp_path, monkeypatch):
+    runner = Runner(cache_dir=tmp_path / "cache")
+    base = R.metrics_document([R.reproduce_paper("fake", runner, tmp_path / "r1")], quick=True)
+    same = R.metrics_document([R.reproduce_paper("fake", runner, tmp_path / "r2")], quick=True)
+    assert compare_metrics(base, same) == []
+    monkeypatch.setenv("SKIDBENCH_BREAK_METHOD", "1")
+    broken = R.metrics_document([R.reproduce_paper("fake", runner, tmp_path / "r3")], quick=True)
+    moved = compare_metrics(base, broken)
+    assert {m["metric"] for m in moved} == {"fake.t1.speed", "fake.t1.double"}
+    b, n = tmp_path / "base.json", tmp_path / "new.json"
+    b.write_text(json.dumps(base))
+    n.write_text(json.dumps(broken))
+    out = subprocess.run([sys.executable, "-m", "bench.cli", "compare", str(b), str(n)], capture_output=True, text=True)
+    assert out.returncode == 1 and "fake.t1.speed" in out.stdout
+
+
+def test_interrupted_write_leaves_no_partial_file(tmp_path):
+    from bench.report.io import atomic_path
+
+    target = tmp_path / "results" / "table.md"
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as tmp:
+            tmp.write_text("half of a ta")
+            raise RuntimeError("killed")
+    assert not target.exists()
+    assert list((tmp_path / "results").iterdir()) == []
