@@ -336,7 +336,7 @@ class Scenario:
     terrain: Terrain
     command: CommandSpec
     duration: float
-    dt: float = 1.0 / 240.0  # physics step [s]
+    dt: float = 1.0 / 120.0  # physics step [s]
     log_rate_hz: float = 100.0
     initial_speed: float = 0.0  # [m/s] forward speed at t = 0 (Yu's ramps)
     initial_yaw: float = 0.0

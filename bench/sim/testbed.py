@@ -169,6 +169,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         k_max = M_EFF_FRACTION * plat.total_mass / dt
         mu_roll = terr.rolling_resistance
         k_lat = terr.shear_modulus_lat_ratio
+        pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
         patches = terr.friction_patches
         out = np.empty((n_steps + 1, len(REC)))
         w = [0.0, 0.0]
@@ -231,6 +232,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             for s in (0, 1):
                 volt = pid[s](refs[s], w[s], dt)
                 tq, cu, dtq = motor_side_torque(motor, volt, w[s])
+                if abs(volt) < motor.v_max and abs(cu) < motor.i_max:
+                    dtq += pid_slope  # the PID's proportional action reacts to the new wheel speed too
                 mu_base = friction_coefficient(terr.mu_sa, terr.mu_op, tq, w[s])
                 u = r_eff[s] * w[s]
                 f_lon_sum = 0.0
@@ -265,14 +268,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                                 if fp.t_period > 0:
                                     scale = 1.0 + (fp.mu_scale - 1.0) * 0.5 * (1 - math.cos(2 * math.pi * t_now / fp.t_period))
                                 mu *= scale
-                    s_lon = v_lon - u
-                    f_lon, f_lat = tire_force(s_lon, v_lat, u, v_lon, nf, mu, terr.mu_lat_ratio,
-                                              janosi, K, k_lat, patch_wheel, eps, k_max)
-                    # d F_lon / d u by a one-sided difference (the law is smooth)
-                    h = 1e-4
-                    f_lon2, _ = tire_force(s_lon - h, v_lat, u + h, v_lon, nf, mu, terr.mu_lat_ratio,
-                                           janosi, K, k_lat, patch_wheel, eps, k_max)
-                    stiff = max((f_lon2 - f_lon) / h, 0.0)
+                    f_lon, f_lat, stiff = tire_force(v_lon - u, v_lat, u, v_lon, nf, mu, terr.mu_lat_ratio,
+                                                     janosi, K, k_lat, patch_wheel, eps, k_max)
                     f_lon_sum += f_lon
                     stiff_sum += stiff
                     wheel_f.append((rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff))

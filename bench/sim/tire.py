@@ -54,8 +54,11 @@ def tire_force(
     patch: float,
     eps: float,
     k_max: float,
-) -> tuple[float, float]:
-    """Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact.
+) -> tuple[float, float, float]:
+    """Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact, and the
+    secant stiffness |F| / |s| [N s/m] used by the semi-implicit wheel-spin update (for a
+    saturating law the secant bounds the tangent from above, so the update stays stable; the
+    steady state does not depend on it).
 
     s_lon, s_lat: sliding velocity of the contact point (v_lon - r w, v_lat) [m/s];
     u: tread speed r w; v_lon: longitudinal velocity of the contact point; normal: N [N] (>= 0).
@@ -65,10 +68,10 @@ def tire_force(
     (brush-model behaviour: Coulomb direction in full sliding).
     """
     if normal <= 0.0:
-        return 0.0, 0.0
+        return 0.0, 0.0, 0.0
     s = math.hypot(s_lon, s_lat)
     if s < 1e-12:
-        return 0.0, 0.0
+        return 0.0, 0.0, k_max
     if model_janosi:
         v_ref = max(abs(u), math.hypot(v_lon, s_lat), eps)
         z_lon = s_lon * patch / (v_ref * K)
@@ -84,4 +87,4 @@ def tire_force(
     cap = k_max * s
     if mag > cap:
         mag = cap
-    return -mag * d_lon, -mag * mu_lat_ratio * d_lat
+    return -mag * d_lon, -mag * mu_lat_ratio * d_lat, mag / s
