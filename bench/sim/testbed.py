@@ -52,6 +52,7 @@ CONTACT_STIFFNESS_PER_KG = 3300.0  # N/m per kg of vehicle: 1e5 for the P3-AT (D
 CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
 M_EFF_FRACTION = 0.13  # effective mass of one contact for the force-slope cap (4 kg of 30.6 kg)
 SETTLE_TIME = 0.5  # s of settling on the ground before t = 0
+HOLD_TIME = 0.2  # s: time constant of a standing wheel's patch deflection (static friction)
 WHEEL_ORDER = ("fl", "rl", "fr", "rr")  # link index 0..3; sides: 0,1 left; 2,3 right
 
 # physics-rate record columns
@@ -167,6 +168,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         patch = max(patch, 1e-3)  # Yu's L - C: the front plus rear patch extent of one side
         patch_wheel = patch / 2.0  # one wheel's patch length (L - C)/2
         k_max = M_EFF_FRACTION * plat.total_mass / dt
+        k_hold = k_max / HOLD_TIME  # stiffness of a standing patch: settles in ~HOLD_TIME
+        defl = [[0.0, 0.0] for _ in range(4)]
         mu_roll = terr.rolling_resistance
         k_lat = terr.shear_modulus_lat_ratio
         pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
@@ -270,6 +273,25 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                                 mu *= scale
                     f_lon, f_lat, stiff = tire_force(v_lon - u, v_lat, u, v_lon, nf, mu, terr.mu_lat_ratio,
                                                      janosi, K, k_lat, patch_wheel, eps, k_max)
+                    if abs(u) < eps and abs(v_lon) < eps and abs(v_lat) < eps:
+                        # standing wheel: the patch sticks. Its elastic deflection (a bristle
+                        # spring, LuGre-like) holds the robot on a slope without creep; the
+                        # velocity cap alone would act as a viscous damper and let it creep.
+                        d = defl[i]
+                        d[0] += (v_lon - u) * dt
+                        d[1] += v_lat * dt
+                        f_lon -= k_hold * d[0]
+                        f_lat -= k_hold * d[1]
+                        f_abs = math.hypot(f_lon, f_lat)
+                        f_lim = mu * nf
+                        if f_abs > f_lim:  # breaks away: sliding friction, deflection relaxes
+                            scale = f_lim / f_abs
+                            f_lon, f_lat = f_lon * scale, f_lat * scale
+                            d[0] *= scale
+                            d[1] *= scale
+                        stiff += k_hold * dt
+                    else:
+                        defl[i][0] = defl[i][1] = 0.0
                     f_lon_sum += f_lon
                     stiff_sum += stiff
                     wheel_f.append((rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff))
