@@ -107,3 +107,46 @@ def _compare(a: argparse.Namespace) -> int:
 
 
 command("compare", "list metrics that moved beyond tolerance; non-zero exit on regression")((_cmp_args, _compare))
+
+
+# ------------------------------------------------------------------------------------------ real data
+def data_root() -> Path:
+    """Where measured data lives: $SKIDBENCH_DATA, else ../shared/data beside the repository."""
+    from bench.runner import REPO
+
+    return Path(os.environ.get("SKIDBENCH_DATA", REPO.parent / "shared" / "data"))
+
+
+@register_extra("real")
+def _extra_real(results_dir: Path, quick: bool) -> None:
+    from bench.real import run_real_benchmark
+
+    table = data_root() / "drive_husky" / "husky_windows.parquet"
+    if not table.is_file():
+        print(f"real: skipped, no data at {table} (set SKIDBENCH_DATA to the folder holding drive_husky/)")
+        return
+    res = run_real_benchmark(table, results_dir / "real")
+    v = res["verdict"]
+    print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
+          f"{v['ideal_dd_median_trans']:.3f} m ({res['runtime_s']:.1f} s)")
+
+
+def _drive_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("table", type=Path, help="DRIVE window table (Parquet or pickle)")
+    p.add_argument("--platform", default=None, help="platform name or TOML path (e.g. husky)")
+    p.add_argument("--wheel-radius", type=float, default=None, help="[m], overrides the platform")
+    p.add_argument("--track", type=float, default=None, help="[m], overrides the platform")
+    p.add_argument("-o", "--output", type=Path, required=True, help="folder for one Parquet run per command step")
+
+
+def _import_drive(a: argparse.Namespace) -> int:
+    from bench.drive import import_drive
+
+    runs = import_drive(a.table, a.platform, a.wheel_radius, a.track)
+    for r in runs:
+        r.to_parquet(a.output / f"step{r.meta['calib_step']:03d}.parquet")
+    print(f"wrote {len(runs)} runs to {a.output}")
+    return 0
+
+
+command("import-drive", "import a DRIVE window table as one run per command step")((_drive_args, _import_drive))

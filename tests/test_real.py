@@ -1,0 +1,299 @@
+"""Tests of bench.real: the real-data benchmark harness.
+
+Independent expectations: per-window loops written here (exact constant-twist arcs; a substepped
+Euler integration with its own error bound; Wang eq. (25) by hand), parameter recovery on windows
+generated from known models, and the done-when of the issue on the full Husky table.
+"""
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.drive import DRIVE_DT, DriveWindows, import_drive_windows
+from bench.kinematics import integrate_se2
+from bench.real import (
+    AsymmetricICR, IdealDD, PluginModel, SymmetricChi, WangChiCurve, end_errors, integrate_windows,
+    run_real_benchmark, split_steps, wang_chi, window_chi,
+)
+from bench.registry import make_estimate
+from tests.test_drive import HUSKY, N, husky_df, husky_slice, raw  # noqa: F401  (fixtures)
+
+R, B = 0.165, 0.55
+
+
+# ------------------------------------------------------------------------------------------
+# independent integrators
+# ------------------------------------------------------------------------------------------
+def arc_loop(vx, vy, wz, x0, y0, h0, dt=DRIVE_DT):
+    """Exact pose after holding (vx, vy, wz) over each dt (closed-form arc), one window at a time."""
+    x, y, h = x0, y0, h0
+    for u, v, w in zip(vx[:-1], vy[:-1], wz[:-1]):
+        if abs(w) < 1e-12:
+            x, y = x + (u * np.cos(h) - v * np.sin(h)) * dt, y + (u * np.sin(h) + v * np.cos(h)) * dt
+        else:
+            h1 = h + w * dt
+            x += (u * (np.sin(h1) - np.sin(h)) + v * (np.cos(h1) - np.cos(h))) / w
+            y += (u * (np.cos(h) - np.cos(h1)) + v * (np.sin(h1) - np.sin(h))) / w
+            h = h1
+    return x, y, h
+
+
+def euler_loop(v, w, x0, y0, h0, dt=DRIVE_DT, sub=100):
+    """Unicycle, forward Euler with ``sub`` substeps per sample; returns the pose and the bound
+    sum_k |v_k||w_k| dt h / 2 on the position error (heading is exact for a constant rate)."""
+    x, y, th = x0, y0, h0
+    hs = dt / sub
+    bound = 0.0
+    for vk, wk in zip(v[:-1], w[:-1]):
+        for _ in range(sub):
+            x += vk * np.cos(th) * hs
+            y += vk * np.sin(th) * hs
+            th += wk * hs
+        bound += abs(vk) * abs(wk) * dt * hs / 2
+    return x, y, th, bound
+
+
+def make_windows(wl: np.ndarray, wr: np.ndarray, steady: np.ndarray | None = None, step: np.ndarray | None = None
+                 ) -> DriveWindows:
+    n, m = wl.shape
+    z = np.zeros((n, m))
+    steady = np.ones(n, bool) if steady is None else steady
+    return DriveWindows(
+        source="<synthetic>", dt=DRIVE_DT,
+        channels={"cmd_wl": wl.copy(), "cmd_wr": wr.copy(), "enc_wl": wl, "enc_wr": wr,
+                  "ref_x": z.copy(), "ref_y": z.copy(), "ref_yaw": z.copy()},
+        calib_step=np.arange(n) if step is None else step, calib_step_label=np.arange(n),
+        window=np.zeros(n, int), steady=steady, transitory=~steady, overlap=np.zeros(n, int),
+        frame_yaw=np.zeros(n), row=np.arange(n),
+    )
+
+
+def with_reference(w: DriveWindows, model, rng: np.random.Generator) -> DriveWindows:
+    """Windows whose ICP reference is ``model``'s own prediction from random initial poses."""
+    ch = dict(w.channels)
+    for c, s in (("ref_x", 3.0), ("ref_y", 3.0), ("ref_yaw", np.pi)):
+        ch[c] = ch[c].copy()
+        ch[c][:, 0] = rng.uniform(-s, s, w.n_windows)
+    w = dataclasses.replace(w, channels=ch)
+    x, y, h = model.predict(w)
+    return dataclasses.replace(w, channels={**ch, "ref_x": x, "ref_y": y, "ref_yaw": h})
+
+
+# ------------------------------------------------------------------------------------------
+# integration and scoring against independent loops
+# ------------------------------------------------------------------------------------------
+def test_integrate_windows_matches_per_window_integration() -> None:
+    rng = np.random.default_rng(1)
+    n = 7
+    vx, vy, wz = rng.uniform(-1, 1, (n, N)), rng.uniform(-0.2, 0.2, (n, N)), rng.uniform(-2, 2, (n, N))
+    wz[2] = 0.0  # a straight window
+    x0, y0, h0 = rng.uniform(-5, 5, n), rng.uniform(-5, 5, n), rng.uniform(-3, 3, n)
+    x, y, h = integrate_windows(DRIVE_DT, vx, vy, wz, x0, y0, h0)
+    t = DRIVE_DT * np.arange(N)
+    for i in range(n):
+        xi, yi, hi = integrate_se2(t, vx[i], vy[i], wz[i], x0[i], y0[i], h0[i])
+        np.testing.assert_allclose((x[i], y[i], h[i]), (xi, yi, hi), atol=1e-10)
+        np.testing.assert_allclose((x[i, -1], y[i, -1], h[i, -1]), arc_loop(vx[i], vy[i], wz[i], x0[i], y0[i], h0[i]),
+                                   atol=1e-10)
+
+
+def test_slice_scores_match_independent_loops(husky_df: pd.DataFrame, husky_slice: Path) -> None:
+    """Ideal-DD and ICR end errors on the real 20-window slice, recomputed here from the raw table:
+    exact arcs (1e-9 m) and substepped Euler within its own error bound (< 3 mm here)."""
+    df = husky_df.iloc[:20]
+    w = import_drive_windows(husky_slice)
+    vl, vr = R * raw(df, "left_wheel_vel"), R * raw(df, "right_wheel_vel")
+    ix, iy, iyaw = raw(df, "icp_x"), raw(df, "icp_y"), np.unwrap(raw(df, "icp_yaw"), axis=1)
+    h0 = -raw(df, "icp_yaw")[:, :5].mean(axis=1)  # heading at the start in DRIVE's window frame
+    for model, chi in ((IdealDD(R, B), 1.0), (SymmetricChi(R, B, chi=2.3), 2.3)):
+        et, ey = end_errors(model.predict(w), w)
+        for i in range(20):
+            v, om = (vl[i] + vr[i]) / 2, (vr[i] - vl[i]) / (chi * B)
+            xa, ya, ha = arc_loop(v, 0 * v, om, 0.0, 0.0, h0[i])
+            ref = (ix[i, -1], iy[i, -1], iyaw[i, -1] - iyaw[i, 0] + h0[i])
+            assert et[i] == pytest.approx(np.hypot(xa - ref[0], ya - ref[1]), abs=1e-9)
+            assert ey[i] == pytest.approx(abs(np.angle(np.exp(1j * (ha - ref[2])))), abs=1e-9)
+            if model.name == "ideal_dd":
+                xe, ye, he, bound = euler_loop(v, om, 0.0, 0.0, h0[i])
+                assert bound < 3e-3
+                assert abs(et[i] - np.hypot(xe - ref[0], ye - ref[1])) <= bound + 1e-12
+                assert ey[i] == pytest.approx(abs(np.angle(np.exp(1j * (he - ref[2])))), abs=1e-9)
+
+
+def test_window_chi_is_wang_eq25(husky_df: pd.DataFrame, husky_slice: Path) -> None:
+    df = husky_df.iloc[:20]
+    w = import_drive_windows(husky_slice)
+    chi, lam, phi, usable = window_chi(w, R, B)
+    wl, wr, icp_yaw = raw(df, "left_wheel_vel"), raw(df, "right_wheel_vel"), raw(df, "icp_yaw")
+    for i in range(20):
+        sl = sum(R * wl[i, k] * DRIVE_DT for k in range(N - 1))
+        sr = sum(R * wr[i, k] * DRIVE_DT for k in range(N - 1))
+        yaw = np.unwrap(icp_yaw[i])
+        p = yaw[-1] - yaw[0]
+        assert phi[i] == pytest.approx(p, abs=1e-12)
+        assert chi[i] == pytest.approx((sr - sl) / (p * B), rel=1e-12)
+        assert lam[i] == pytest.approx((sl + sr) / (sr - sl), rel=1e-12)
+        assert usable[i] == (df["steady_state_mask"].iloc[i] == 1 and abs(p) >= 0.2)
+
+
+def test_wang_chi_function() -> None:
+    a, b = 0.4728, 0.0538  # Wang 2015 eq. (45)
+    lam = np.array([0.0, 1.0, 4.0, -4.0, np.inf, np.nan])
+    np.testing.assert_allclose(wang_chi(lam, a, b), [1 + a, 1 + a / (1 + b), 1 + a / (1 + 2 * b),
+                                                     1 + a / (1 + 2 * b), 1.0, 1 + a])
+
+
+# ------------------------------------------------------------------------------------------
+# fits recover known parameters
+# ------------------------------------------------------------------------------------------
+def test_fits_recover_generating_models() -> None:
+    rng = np.random.default_rng(7)
+    n = 80
+    base_l, base_r = rng.uniform(-6, 6, (n, 1)), rng.uniform(-6, 6, (n, 1))
+    wl = base_l + rng.normal(0, 0.3, (n, N))
+    wr = base_r + rng.normal(0, 0.3, (n, N))
+    truth = AsymmetricICR(R, B, y_l=0.62, y_r=-0.51, x_icr=-0.08, alpha_l=0.86, alpha_r=0.91)
+    w = with_reference(make_windows(wl, wr), truth, rng)
+    fit = truth.__class__(R, B).fit(w)
+    for k in ("y_l", "y_r", "x_icr", "alpha_l", "alpha_r"):
+        assert getattr(fit, k) == pytest.approx(getattr(truth, k), abs=1e-5), k
+    assert fit.fit_cost < 1e-12
+
+    truth_s = SymmetricChi(R, B, chi=2.3)
+    ws = with_reference(make_windows(wl, wr), truth_s, rng)
+    assert SymmetricChi(R, B).fit(ws).chi == pytest.approx(2.3, abs=1e-7)
+    # the asymmetric model contains the symmetric one: its fit recovers it too
+    fa = AsymmetricICR(R, B).fit(ws)
+    assert (fa.y_l, fa.y_r, fa.x_icr, fa.alpha_l) == pytest.approx((2.3 * B / 2, -2.3 * B / 2, 0, 1), abs=1e-5)
+
+
+def test_wang_fit_recovers_curve_from_measured_chi() -> None:
+    """Constant wheel speeds per window: eq. (25) measures the model's chi exactly, so Wang's curve
+    fit recovers (a, b); non-steady or barely turning windows are not used."""
+    rng = np.random.default_rng(3)
+    n = 60
+    wl = np.repeat(rng.uniform(-6, 6, (n, 1)), N, axis=1)
+    wr = np.repeat(rng.uniform(-6, 6, (n, 1)), N, axis=1)
+    steady = rng.uniform(size=n) < 0.7
+    truth = WangChiCurve(R, B, a=1.2, b=0.15)
+    w = with_reference(make_windows(wl, wr, steady=steady), truth, rng)
+    chi, _, phi, usable = window_chi(w, R, B)
+    assert usable.sum() > 20 and not usable[~steady].any()
+    fit = WangChiCurve(R, B).fit(w)
+    assert (fit.a, fit.b) == pytest.approx((1.2, 0.15), abs=1e-6)
+    assert fit.n_fit == usable.sum()
+
+
+# ------------------------------------------------------------------------------------------
+# split, plugin adapter, harness outputs
+# ------------------------------------------------------------------------------------------
+def test_split_is_by_step_and_seeded(husky_slice: Path) -> None:
+    w = import_drive_windows(husky_slice)
+    c0, t0 = split_steps(w, 0)
+    assert set(c0).isdisjoint(t0) and set(c0) | set(t0) == set(w.calib_step)
+    assert len(c0) == (len(set(w.calib_step)) + 1) // 2
+    c0b, _ = split_steps(w, 0)
+    np.testing.assert_array_equal(c0, c0b)
+    assert any(not np.array_equal(split_steps(w, s)[0], c0) for s in range(1, 6))
+
+
+class IdealDDMethod:
+    """A minimal registry-style plugin (ideal DD) whose estimates start at an arbitrary pose."""
+
+    name = "test.ideal_dd"
+    paper = "-"
+    requires = frozenset({"t", "enc_wl", "enc_wr"})
+
+    def calibrate(self, runs):
+        assert all(r.has("ref_x") for r in runs)
+        return self
+
+    def estimate(self, run):
+        assert not any(c.startswith("ref_") for c in run.channels)  # reference withheld
+        vl, vr = R * run["enc_wl"], R * run["enc_wr"]
+        x, y, yaw = integrate_se2(run.t, (vl + vr) / 2, 0 * vl, (vr - vl) / B, 5.0, -3.0, 1.0)
+        return make_estimate(self.name, t=run.t, x=x, y=y, yaw=yaw)
+
+
+def test_plugin_adapter_matches_native_model(husky_slice: Path) -> None:
+    w = import_drive_windows(husky_slice)
+    plugin = PluginModel(IdealDDMethod()).fit(w)
+    assert plugin.name == "test.ideal_dd"
+    for a, b in zip(plugin.predict(w), IdealDD(R, B).predict(w)):
+        np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+def test_benchmark_on_slice_is_deterministic(husky_df: pd.DataFrame, husky_slice: Path, tmp_path: Path) -> None:
+    res = run_real_benchmark(husky_slice, tmp_path / "a", seed=0)
+    again = run_real_benchmark(husky_slice, tmp_path / "b", seed=0)
+    names = sorted(Path(f).name for f in res["files"])
+    assert names == ["husky.csv", "husky.md", "husky_chi.csv", "husky_chi.png", "husky_errors.png",
+                     "husky_examples.png"]
+    for f in names:
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes(), f
+    assert not list((tmp_path / "a").glob(".*"))  # no temp file left behind
+    # the harness's ideal-DD statistics, recomputed from the raw table on its test steps
+    df = husky_df.iloc[:20]
+    w = import_drive_windows(husky_slice)
+    test = np.isin(w.calib_step, res["test_steps"])
+    assert not np.isin(w.calib_step[test], res["calib_steps"]).any()
+    vl, vr = R * raw(df, "left_wheel_vel"), R * raw(df, "right_wheel_vel")
+    h0 = -raw(df, "icp_yaw")[:, :5].mean(axis=1)
+    ix, iy = raw(df, "icp_x"), raw(df, "icp_y")
+    e = []
+    for i in np.flatnonzero(test):
+        xa, ya, _ = arc_loop((vl[i] + vr[i]) / 2, 0 * vl[i], (vr[i] - vl[i]) / B, 0.0, 0.0, h0[i])
+        e.append(np.hypot(xa - ix[i, -1], ya - iy[i, -1]))
+    st = res["models"]["ideal_dd"]["stats"]["all"]["trans"]
+    assert st["n"] == len(e)
+    assert (st["mean"], st["median"], st["p95"]) == pytest.approx((np.mean(e), np.median(e), np.percentile(e, 95)),
+                                                                  abs=1e-9)
+    md = (tmp_path / "a" / "husky.md").read_text()
+    v = res["verdict"]
+    assert f"{v['ideal_dd_median_trans']:.3f} m" in md and f"{v['best_icr_median_trans']:.3f} m" in md
+
+
+def test_unmet_verdict_is_reported(husky_slice: Path, tmp_path: Path) -> None:
+    @dataclasses.dataclass(frozen=True)
+    class BadChi(SymmetricChi):
+        def fit(self, calib):
+            return dataclasses.replace(self, chi=0.6)
+
+    res = run_real_benchmark(husky_slice, tmp_path, models=[IdealDD(R, B), BadChi(R, B)], figures=False)
+    v = res["verdict"]
+    assert v["best_icr_model"] == "icr_sym_chi" and not v["passed"]
+    assert v["best_icr_median_trans"] >= v["ideal_dd_median_trans"]
+    md = (tmp_path / "husky.md").read_text()
+    assert "**Not met**" in md and f"{v['ideal_dd_median_trans']:.3f} m" in md
+
+
+def test_nan_window_is_excluded(husky_df: pd.DataFrame, tmp_path: Path) -> None:
+    df = husky_df.iloc[:20].copy()
+    df.loc[df.index[4], "right_wheel_vel_10"] = np.nan
+    p = tmp_path / "nan.parquet"
+    df.to_parquet(p)
+    res = run_real_benchmark(p, tmp_path / "out", figures=False)
+    assert res["n_excluded"] == 1
+    assert res["n_calib_windows"] + res["n_test_windows"] == 19
+
+
+# ------------------------------------------------------------------------------------------
+# the done-when of the issue, on the full table
+# ------------------------------------------------------------------------------------------
+def test_full_husky_benchmark(husky_df: pd.DataFrame, tmp_path: Path) -> None:
+    res = run_real_benchmark(HUSKY, tmp_path, seed=0)
+    assert res["runtime_s"] < 60.0
+    assert res["n_windows"] == len(husky_df) and res["n_excluded"] == 0
+    assert len(res["calib_steps"]) + len(res["test_steps"]) == 201
+    v = res["verdict"]
+    meds = {k: m["stats"]["all"]["trans"]["median"] for k, m in res["models"].items()}
+    assert v["ideal_dd_median_trans"] == meds["ideal_dd"]
+    best = min((k for k in meds if k != "ideal_dd"), key=meds.get)
+    assert v["best_icr_model"] == best and v["passed"] == (meds[best] < meds["ideal_dd"])
+    md = (tmp_path / "husky.md").read_text()
+    assert f"{meds[best]:.3f} m" in md and f"{meds['ideal_dd']:.3f} m" in md
+    assert ("**Not met**" in md) == (not v["passed"])
