@@ -155,6 +155,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
     ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
     ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
     accel_w = scn.command.accel / plat.wheel_radius if scn.command.accel > 0 else math.inf
+    ref_l, ref_r = ref_l.tolist(), ref_r.tolist()  # Python floats: faster scalar math in the loop
 
     cid = p.connect(p.DIRECT)
     try:
@@ -174,7 +175,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         k_lat = terr.shear_modulus_lat_ratio
         pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
         patches = terr.friction_patches
-        out = np.empty((n_steps + 1, len(REC)))
+        rows: list[tuple] = []
+        mu_lat_ratio = terr.mu_lat_ratio
+        mu_sa, mu_op = terr.mu_sa, terr.mu_op
+        v_max, i_max = motor.v_max, motor.i_max
+        lim = accel_w * dt
         w = [0.0, 0.0]
         th = [0.0, 0.0]
         tau = [0.0, 0.0]
@@ -217,7 +222,6 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 targets = (ref_l[k], ref_r[k])
                 for s in (0, 1):
                     d = targets[s] - refs[s]
-                    lim = accel_w * dt
                     refs[s] += d if abs(d) <= lim else math.copysign(lim, d)
             R = mat(orn)
             fwd = (R[0], R[3], R[6])
@@ -235,14 +239,16 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             for s in (0, 1):
                 volt = pid[s](refs[s], w[s], dt)
                 tq, cu, dtq = motor_side_torque(motor, volt, w[s])
-                if abs(volt) < motor.v_max and abs(cu) < motor.i_max:
+                if abs(volt) < v_max and abs(cu) < i_max:
                     dtq += pid_slope  # the PID's proportional action reacts to the new wheel speed too
-                mu_base = friction_coefficient(terr.mu_sa, terr.mu_op, tq, w[s])
+                mu_base = friction_coefficient(mu_sa, mu_op, tq, w[s])
                 u = r_eff[s] * w[s]
                 f_lon_sum = 0.0
                 stiff_sum = 0.0
                 n_side = 0.0
-                wheel_f = []
+                # stiffness-weighted wheel directions and moments: the force correction for the
+                # new wheel speed is rr * dw * (these sums), applied after the side's update
+                sx = sy = sz = smx = smy = smz = 0.0
                 for i in (2 * s, 2 * s + 1):
                     nf = normal[i]
                     if nf <= 0.0 or cpos[i] is None:
@@ -271,7 +277,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                                 if fp.t_period > 0:
                                     scale = 1.0 + (fp.mu_scale - 1.0) * 0.5 * (1 - math.cos(2 * math.pi * t_now / fp.t_period))
                                 mu *= scale
-                    f_lon, f_lat, stiff = tire_force(v_lon - u, v_lat, u, v_lon, nf, mu, terr.mu_lat_ratio,
+                    f_lon, f_lat, stiff = tire_force(v_lon - u, v_lat, u, v_lon, nf, mu, mu_lat_ratio,
                                                      janosi, K, k_lat, patch_wheel, eps, k_max)
                     if abs(u) < eps and abs(v_lon) < eps and abs(v_lat) < eps:
                         # standing wheel: the patch sticks. Its elastic deflection (a bristle
@@ -294,7 +300,21 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                         defl[i][0] = defl[i][1] = 0.0
                     f_lon_sum += f_lon
                     stiff_sum += stiff
-                    wheel_f.append((rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff))
+                    gx = f_lon * ex + f_lat * lx
+                    gy = f_lon * ey + f_lat * ly
+                    gz = f_lon * ez + f_lat * lz
+                    fx += gx
+                    fy += gy
+                    fz += gz
+                    mx += ry * gz - rz * gy
+                    my += rz * gx - rx * gz
+                    mz += rx * gy - ry * gx
+                    sx += stiff * ex
+                    sy += stiff * ey
+                    sz += stiff * ez
+                    smx += stiff * (ry * ez - rz * ey)
+                    smy += stiff * (rz * ex - rx * ez)
+                    smz += stiff * (rx * ey - ry * ex)
                 # rolling resistance torque on the side's wheels, smooth sign
                 sgn = math.tanh(u / 0.01)
                 t_roll = mu_roll * n_side * r_eff[s] * sgn
@@ -303,27 +323,23 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 num = tq - rr * f_lon_sum - t_roll
                 den = i_side - dt * dtq + dt * rr * rr * stiff_sum + dt * dt_roll
                 dw = dt * num / den
-                for (rx, ry, rz, ex, ey, ez, lx, ly, lz, f_lon, f_lat, stiff) in wheel_f:
-                    fl = f_lon + stiff * rr * dw  # force consistent with the new wheel speed
-                    gx = fl * ex + f_lat * lx
-                    gy = fl * ey + f_lat * ly
-                    gz = fl * ez + f_lat * lz
-                    fx += gx
-                    fy += gy
-                    fz += gz
-                    mx += ry * gz - rz * gy
-                    my += rz * gx - rx * gz
-                    mz += rx * gy - ry * gx
+                c = rr * dw  # longitudinal forces consistent with the new wheel speed
+                fx += c * sx
+                fy += c * sy
+                fz += c * sz
+                mx += c * smx
+                my += c * smy
+                mz += c * smz
                 w[s] += dw
                 th[s] += w[s] * dt
                 tau[s], cur[s] = tq, cu
             if k >= 0:
-                out[k] = (
+                rows.append((
                     t_now, pos[0], pos[1], pos[2], orn[0], orn[1], orn[2], orn[3],
                     lin[0], lin[1], lin[2], ang[0], ang[1], ang[2],
                     w[0], w[1], th[0], th[1], tau[0], tau[1], cur[0], cur[1], refs[0], refs[1],
                     normal[0], normal[1], normal[2], normal[3],
-                )
+                ))
                 if k == n_steps:
                     break
                 if progress is not None and k % 2000 == 0:
@@ -337,4 +353,4 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         p.disconnect(cid)
     if progress is not None:
         progress(1.0)
-    return PhysicsTrace(out, cg)
+    return PhysicsTrace(np.array(rows, dtype=np.float64), cg)
