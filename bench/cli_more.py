@@ -150,3 +150,57 @@ def _import_drive(a: argparse.Namespace) -> int:
 
 
 command("import-drive", "import a DRIVE window table as one run per command step")((_drive_args, _import_drive))
+
+
+# ------------------------------------------------------------------------------------------ formats
+def _tum_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", type=Path, help="a run (.parquet) or an estimate (.csv from `skidbench estimate`)")
+    p.add_argument("--source", default="truth", choices=["truth", "ref", "gnss"], help="pose channels of a run")
+    p.add_argument("-o", "--output", type=Path, required=True)
+
+
+def _export_tum(a: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from bench.formats import run_to_tum
+    from bench.registry import Estimate
+    from bench.run import Run
+
+    if a.input.suffix == ".csv":
+        src = Estimate(pd.read_csv(a.input), method=a.input.stem)
+        run_to_tum(None, src, a.output)
+    else:
+        run_to_tum(Run.from_parquet(a.input), a.source, a.output)
+    print(f"wrote {a.output}")
+    return 0
+
+
+command("export-tum", "write a run's or an estimate's trajectory in TUM format")((_tum_args, _export_tum))
+
+
+def _imp_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("log", type=Path)
+    p.add_argument("--map", dest="mapping", type=Path, required=True, help="mapping TOML (columns/topics, units)")
+    p.add_argument("-o", "--output", type=Path, required=True)
+
+
+def _import_csv(a: argparse.Namespace) -> int:
+    from bench.formats import import_csv
+
+    run = import_csv(a.log, a.mapping)
+    run.to_parquet(a.output)
+    print(f"wrote {a.output} ({len(run.data)} rows)")
+    return 0
+
+
+def _import_bag(a: argparse.Namespace) -> int:
+    from bench.formats import import_bag
+
+    run = import_bag(a.log, a.mapping)
+    run.to_parquet(a.output)
+    print(f"wrote {a.output} ({len(run.data)} rows)")
+    return 0
+
+
+command("import-csv", "import a CSV log through a mapping file")((_imp_args, _import_csv))
+command("import-bag", "import a ROS 1/ROS 2 bag through a mapping file (rosbags)")((_imp_args, _import_bag))

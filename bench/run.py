@@ -111,7 +111,7 @@ class Run:
         if np.any(d <= 0):
             i = int(np.flatnonzero(d <= 0)[0])
             raise RunError(
-                self.where, "t", f"row {i + 1}: {t[i + 1]!r} after {t[i]!r}",
+                self.where, "t", f"row {i + 1}: {float(t[i + 1])!r} after {float(t[i])!r}",
                 "time must increase strictly (non-monotonic or duplicated timestamp)",
             )
         for c in self.data.columns:
