@@ -370,6 +370,7 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     seconds = time.perf_counter() - t0
     suffix = "_quick" if quick else ""
     atomic_write_json(results_dir / f"metrics{suffix}.json", metrics_document(results, quick))
+    atomic_write_json(results_dir / f"runs_manifest{suffix}.json", runner.manifest)
     write_report(results, results_dir, quick, runner, seconds)
     append_history(results_dir, results, quick, seconds)
     return results

@@ -60,6 +60,7 @@ class Runner:
     use_cache: bool = True
     progress: Callable[[int, int], None] | None = None
     stats: dict = field(default_factory=lambda: {"simulated": 0, "cached": 0})
+    manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})
 
     def path_for(self, scn: Scenario, seed: int) -> Path:
         return Path(self.cache_dir) / f"{cache_key(scn, seed)}.parquet"
@@ -78,7 +79,20 @@ class Runner:
             Path(self.cache_dir).mkdir(parents=True, exist_ok=True)
             self._compute(todo)
             self.stats["simulated"] += len(todo)
-        return [Run.from_parquet(p) for p in paths]
+        runs = [Run.from_parquet(p) for p in paths]
+        for (s, seed), path, run in zip(requests, paths, runs):
+            self._record(s, seed, path.stem, run)
+        return runs
+
+    def _record(self, scn: Scenario, seed: int, key: str, run: Run) -> None:
+        """Provenance: every served run's scenario spec, seed and content hash (runs_manifest.json)."""
+        from bench.sim import scenario_hash
+        from bench.spec import to_dict
+
+        sh = scenario_hash(scn)
+        self.manifest["scenarios"].setdefault(sh, to_dict(scn))
+        self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
+                                      "content_hash": run.content_hash()}
 
     def _compute(self, todo: dict[Path, tuple[Scenario, int]]) -> None:
         items = list(todo.items())
@@ -108,3 +122,20 @@ class Runner:
                 done += 1
                 if self.progress:
                     self.progress(done, len(items))
+
+
+def verify_manifest(manifest: dict, workers: int = 1, limit: int | None = None,
+                    progress: Callable[[int, int], None] | None = None) -> list[dict]:
+    """Re-simulate the runs of a manifest (no cache, in worker processes when ``workers`` > 1)
+    and return those whose content hash differs from the recorded one."""
+    import tempfile
+
+    from bench.spec import Scenario, build
+
+    items = sorted(manifest["runs"].items())[: limit or None]
+    with tempfile.TemporaryDirectory() as tmp:
+        runner = Runner(cache_dir=Path(tmp), workers=workers, use_cache=False, progress=progress)
+        reqs = [(build(Scenario, manifest["scenarios"][r["scenario_hash"]]), r["seed"]) for _, r in items]
+        runs = runner.simulate_many(reqs)
+    return [{"key": k, **r, "got": run.content_hash()} for (k, r), run in zip(items, runs)
+            if run.content_hash() != r["content_hash"]]
