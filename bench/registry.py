@@ -93,6 +93,7 @@ def estimate(method: Method, run: Run) -> Estimate:
             f"{method.name}: refusing to estimate on run '{run.id}', which it was calibrated on; "
             "calibration and scored runs must differ (other seed or path)"
         )
+    run.validate()
     run.require(method.requires, method.name)
     return method.estimate(run.without_truth())
 

@@ -1,0 +1,534 @@
+"""Liu et al. 2020: slip-aware motion estimation with an ICR kinematic model and a multi-innovation UKF.
+
+Citation
+    F. Liu, X. Li, S. Yuan and W. Lan, "Slip-Aware Motion Estimation for Off-Road Mobile Robots via
+    Multi-Innovation Unscented Kalman Filter", IEEE Access, vol. 8, 2020,
+    doi:10.1109/ACCESS.2020.2977889.
+
+Four plugins, the four estimators compared in Liu's Figs. 6-20 and Table 2:
+
+    liu2020.en_dr    EnDr     encoder dead reckoning, no-slip model (eqs. (1), (8) with y_l = B/2,
+                              y_r = -B/2, x = 0, then (9))
+    liu2020.icr      IcrDr    ICR dead reckoning: A_ICR of eq. (8) with constant ICR locations
+                              calibrated on calibration runs against GNSS (eqs. (2), (3), (5)), then (9)
+    liu2020.ukf_icr  UkfIcr   UKF with IMU input and encoder-ICR + GNSS measurements (eqs. (14)-(24),
+                              (30)-(32), Appendix); MI-UKF with lambda_2 = 0
+    liu2020.mi_ukf   MiUkf    the same with the multi-innovation update, p = 2, a = 0.5 (eqs. (25)-(29))
+
+Paper equation -> code
+    (1)          one speed per side: the Run's ``enc_wl``, ``enc_wr``
+    (2), (3), (5) ICR from velocities         icr_from_state (bench.kinematics.icr_inverse form)
+    (6)-(8), (11) A_ICR: body velocity from tread speeds   bench.kinematics.icr_forward
+    (9)          body -> world rotation       bench.kinematics.integrate_se2 (DR), liu_fx (UKF)
+    (10)         wheel slip                   slip_rates (repo definition, see below)
+    (12), (13a-f), (30) process model         liu_fx
+    (15)-(24)    UKF                          bench.ukf.Ukf
+    (25)-(29)    multi-innovation update      bench.ukf.Ukf(mi_weights=bench.ukf.mi_weights(2, 0.5))
+    (31), (32), Appendix  measurement model   liu_hx, LiuUkfParams.r_gnss / r_encoder, _gnss_block,
+                                              run_liu_filter (encoder-ICR pseudo-measurement)
+    [-20, 20] ICR clamp (Sec. V-B-3)          LiuUkfParams.icr_clamp
+
+Conventions and deviations (each is a reading of an ambiguous or inconsistent printed equation):
+
+* Frames: Liu's body frame is ours (x forward, y left).  Liu's world rotation (9)/(13d-e) is printed
+  as ``[[cos, sin], [sin, -cos]]``, a reflection (det = -1); with y left and yaw CCW (ENU, DESIGN.md)
+  the proper rotation ``X' = vx cos - vy sin``, ``Y' = vx sin + vy cos`` is used everywhere,
+  including the encoder pseudo-measurement of the Appendix.
+* A_ICR (8): its printed second row is garbled; eq. (5) ``v_y = -x theta_dot`` is used (as in
+  ``bench.kinematics.icr_forward``).
+* Slip (10): as printed, ``s_l = (2 y_l - y_r)/(y_l - y_r)`` gives 1.5 for pure rolling, so the
+  repo's definition is used: ``lambda_i = (r w_i - v_ix)/(r w_i)`` with ``v_lx = v_x - B/2 theta_dot``,
+  ``v_rx = v_x + B/2 theta_dot`` (Yi eq. 6); with (2)-(3) this is ``lambda_l = (B/2 - y_l) theta_dot
+  / (r w_l)``.  NaN where ``|r w_i| < slip_min_speed``.
+* State: the six states of Sec. IV, ``(X, Y, phi, v_x, v_y, theta_dot)``; the ICR locations are not
+  states: after each update they are computed from the posterior velocities and the latest encoder
+  speeds with (2), (3), (5), clamped to [-20, 20] (Sec. V-B-3), and used in A_ICR for the next
+  encoder measurement (Sec. IV-A: "Then the ICR parameters (y_l, y_r, x) can be generated to build
+  the ICR kinematic model").  Initial ICR: (B/2, -B/2, 0) (Sec. V-B-3).  Two guards the paper
+  does not state keep A_ICR finite: an ICR is recomputed only when ``|theta_dot| >=
+  icr_min_yaw_rate`` and accepted only when ``y_l - y_r >= icr_min_separation``; otherwise the
+  previous ICR is held.
+* Input (12), (13a-b), (30): the accelerometer ``(a_x, a_y)`` drives ``v_x, v_y``.  Liu's (13a-b)
+  omit the rotating-frame transport terms; with ``transport_terms=True`` (default) the body-frame
+  kinematics ``dv_x = (a_x + theta_dot v_y) dT``, ``dv_y = (a_y - theta_dot v_x) dT`` are used (a
+  specific force measured on a turning body contains the centripetal term).  ``False`` is the
+  literal (13a-b).  The yaw rate is a random walk (13c); the gyro enters as the sixth measurement
+  (the "theta_dot_{k+1}" row of the first block of (32), noise 0.01 of the Appendix).
+* Measurement (32): block 1 is (gnss_x, gnss_y, gnss_yaw, body v_x, body v_y, gyro z), the GNSS
+  world velocity rotated into the body frame with the GNSS heading; block 2 is the encoder
+  pseudo-measurement of the Appendix: the previous posterior pose advanced one step with the
+  A_ICR velocities of the encoder speeds at k+1, and those velocities.  The Appendix noise vector is
+  read as standard deviations (0.3 m matches the DGNSS accuracy quoted in Sec. III-B-3): R =
+  diag(v^2).  A GNSS outage or any missing element shrinks the vector (after (32)).  As in the
+  paper, the encoder pose pseudo-measurement, built from the previous posterior, is fused as if
+  independent of the state; a consequence (measured on synthetic data, see tests/test_liu2020.py)
+  is that the position covariance hardly grows during a GNSS outage: the filter is overconfident
+  there (pose NEES >> 3) and recovers slowly when the GNSS returns.
+* Heading: Liu's MI-UKF chatters at the -pi/pi crossing (Figs. 16-17) because old innovations are
+  merged.  Here every heading innovation is wrapped when formed, the stored past corrections are
+  those wrapped products, sigma-point heading means use sin/cos averaging and the state is wrapped
+  after every update (bench.ukf), so there is no chattering.
+* Process noise w_k (30): Liu gives no sigma_1..4; they are densities per sqrt(second)
+  (``q_pos``, ``q_yaw``, ``q_vel``, ``q_yaw_rate``), Q = diag(q^2) dT.  Liu gives no UKF alpha:
+  ``SigmaParams()`` (alpha = 1, beta = 2, kappa = 0).
+* Time: the log rows are the filter steps; the step k -> k+1 uses the IMU input at k (zero-order
+  hold of the latest sample) and the measurements at k+1 (Appendix: ``v^ICR_{k+1}``); encoder
+  speeds are taken as the average over the interval ending at their sample (DR does the same).
+* Initial pose (all four): the first GNSS fix (gnss_x, gnss_y, gnss_yaw), held from t_0 (the runs
+  start at rest, as Liu's Fig. 6 starts the DR at the GNSS start point).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Mapping, Sequence
+
+import numpy as np
+
+from bench.kinematics import icr_forward, integrate_se2
+from bench.registry import Estimate, make_estimate
+from bench.run import Run, RunError
+from bench.ukf import FilterError, SigmaParams, Ukf, mi_weights
+
+PAPER = "Liu et al. 2020"
+STATE_NAMES = ("X", "Y", "phi", "v_x", "v_y", "yaw_rate")
+ENCODERS = frozenset({"enc_wl", "enc_wr"})
+GNSS_POSE = frozenset({"gnss_x", "gnss_y", "gnss_yaw"})
+GNSS_VEL = frozenset({"gnss_vx", "gnss_vy"})
+IMU = frozenset({"imu_ax", "imu_ay", "imu_gz"})
+
+__all__ = [
+    "EnDr", "IcrDr", "UkfIcr", "MiUkf", "LiuUkfParams", "Geometry", "geometry", "liu_fx", "liu_hx",
+    "fit_icr", "slip_rates", "icr_from_state", "run_liu_filter", "PAPER",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Inputs
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Geometry:
+    """What a user knows of the platform (Liu Table 1): track B and wheel radius r [m]."""
+
+    track: float
+    wheel_radius: float
+
+
+def geometry(run: Run) -> Geometry:
+    """B and r from ``run.meta["platform"]``; a missing or non-positive value is a RunError."""
+    plat = run.meta.get("platform")
+    if not isinstance(plat, Mapping):
+        raise RunError(run.where, "meta.platform", plat, "Liu 2020 needs the platform geometry (track, wheel_radius)")
+    vals = {}
+    for key in ("track", "wheel_radius"):
+        v = plat.get(key)
+        if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            raise RunError(run.where, f"meta.platform.{key}", v, "expected a positive number [m]")
+        vals[key] = float(v)
+    return Geometry(**vals)
+
+
+def _check_channels(run: Run, channels: frozenset[str], who: str) -> None:
+    """Required channels present and non-empty (``Run.require``), and no infinite value (a NaN is
+    a missing sample and is handled; an inf is a corrupt log)."""
+    run.require(channels, who)
+    for c in sorted(channels):
+        v = run[c]
+        bad = np.isinf(v)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise RunError(run.where, c, f"row {i}: {v[i]}", f"value must be finite (read by {who})")
+
+
+def _ffill(v: np.ndarray, before: float = 0.0) -> np.ndarray:
+    """Zero-order hold of the finite samples (``before`` until the first one)."""
+    ok = np.isfinite(v)
+    if ok.all():
+        return v.astype(float, copy=True)
+    idx = np.where(ok, np.arange(v.size), -1)
+    np.maximum.accumulate(idx, out=idx)
+    out = np.where(idx >= 0, v[np.maximum(idx, 0)], before)
+    return out
+
+
+def _interval_speed(v: np.ndarray) -> np.ndarray:
+    """Per-row speed for the interval ending at the row, held until the next sample; the last
+    value is repeated so that ``integrate_se2`` (which uses element k for [t_k, t_k+1)) sees the
+    speed measured over [t_k, t_k+1] at index k."""
+    f = _ffill(v, before=np.nan)
+    first = np.flatnonzero(np.isfinite(f))
+    f = np.where(np.isfinite(f), f, f[first[0]] if first.size else 0.0)
+    return np.concatenate((f[1:], f[-1:]))
+
+
+def _initial_pose(run: Run) -> tuple[float, float, float, int]:
+    """First GNSS fix with x, y and yaw (the start point of Liu's Fig. 6)."""
+    x, y, yaw = run["gnss_x"], run["gnss_y"], run["gnss_yaw"]
+    ok = np.flatnonzero(np.isfinite(x) & np.isfinite(y) & np.isfinite(yaw))
+    if ok.size == 0:
+        raise RunError(run.where, "gnss_x/gnss_y/gnss_yaw", "no joint sample", "Liu 2020 starts from the first GNSS fix")
+    i = int(ok[0])
+    return float(x[i]), float(y[i]), float(yaw[i]), i
+
+
+def _wrap(a: np.ndarray) -> np.ndarray:
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def slip_rates(v_l: np.ndarray, v_r: np.ndarray, vx: np.ndarray, wz: np.ndarray, track: float,
+               min_speed: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+    """Longitudinal slip ``lambda_i = (r w_i - v_ix)/(r w_i)`` (repo convention; Liu eq. (10) with
+    ``v_lx = v_x - B/2 theta_dot``, ``v_rx = v_x + B/2 theta_dot``); NaN where ``|r w_i| < min_speed``."""
+    v_l, v_r = np.asarray(v_l, float), np.asarray(v_r, float)
+    vx, wz = np.asarray(vx, float), np.asarray(wz, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sl = np.where(np.abs(v_l) >= min_speed, (v_l - (vx - 0.5 * track * wz)) / v_l, np.nan)
+        sr = np.where(np.abs(v_r) >= min_speed, (v_r - (vx + 0.5 * track * wz)) / v_r, np.nan)
+    return sl, sr
+
+
+def _dr_estimate(name: str, run: Run, geom: Geometry, y_l: float, y_r: float, x_icr: float,
+                 info: Mapping[str, Any]) -> Estimate:
+    t = run.t
+    v_l = geom.wheel_radius * _interval_speed(run["enc_wl"])
+    v_r = geom.wheel_radius * _interval_speed(run["enc_wr"])
+    vx, vy, wz = icr_forward(v_l, v_r, y_l, y_r, x_icr)  # eq. (8) / (11)
+    x0, y0, yaw0, _ = _initial_pose(run)
+    x, y, yaw = integrate_se2(t, vx, vy, wz, x0, y0, yaw0)  # eq. (9), exact SE(2)
+    sl, sr = slip_rates(v_l, v_r, vx, wz, geom.track)
+    n = t.size
+    return make_estimate(
+        name, info, t=t, x=x, y=y, yaw=_wrap(yaw), vx=vx, vy=vy, wz=wz, slip_l=sl, slip_r=sr,
+        y_l=np.full(n, y_l), y_r=np.full(n, y_r), x_icr=np.full(n, x_icr),
+        chi=np.full(n, (y_l - y_r) / geom.track), wl=v_l / geom.wheel_radius, wr=v_r / geom.wheel_radius,
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Dead reckoning: En-DR and ICR
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EnDr:
+    """Encoder dead reckoning with the no-slip model ("En-DR" of Liu Figs. 6-20, Table 2):
+    A_ICR of eq. (8) at y_l = B/2, y_r = -B/2, x = 0 (Sec. III-A), integrated with (9)."""
+
+    name: ClassVar[str] = "liu2020.en_dr"
+    paper: ClassVar[str] = PAPER
+    requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+
+    def calibrate(self, runs: Sequence[Run]) -> "EnDr":
+        return self
+
+    def estimate(self, run: Run) -> Estimate:
+        _check_channels(run, self.requires, self.name)
+        g = geometry(run)
+        return _dr_estimate(self.name, run, g, g.track / 2, -g.track / 2, 0.0, {"model": "no-slip"})
+
+
+@dataclass(frozen=True)
+class IcrDr:
+    """ICR dead reckoning ("ICR" of Liu Figs. 6-20, Table 2): A_ICR of eq. (8) with constant ICR
+    locations, integrated with (9), no GNSS after the start point.
+
+    The ICR locations are given, or fitted by :meth:`calibrate` on calibration runs against the GNSS
+    (body velocity from gnss_vx/vy rotated by gnss_yaw, yaw rate from the gyro): the least-squares
+    fit of eqs. (6)-(8) (equivalently (2), (3), (5)) over all moving samples."""
+
+    y_l: float | None = None
+    y_r: float | None = None
+    x_icr: float | None = None
+    fit_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
+
+    name: ClassVar[str] = "liu2020.icr"
+    paper: ClassVar[str] = PAPER
+    requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+    calibration_requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE | GNSS_VEL | frozenset({"imu_gz"})
+
+    def calibrate(self, runs: Sequence[Run]) -> "IcrDr":
+        y_l, y_r, x_icr, info = fit_icr(runs)
+        return dataclasses.replace(self, y_l=y_l, y_r=y_r, x_icr=x_icr, fit_info=info)
+
+    def estimate(self, run: Run) -> Estimate:
+        _check_channels(run, self.requires, self.name)
+        if self.y_l is None or self.y_r is None or self.x_icr is None:
+            raise RuntimeError(f"{self.name}: ICR locations unknown; call calibrate(runs) or pass y_l, y_r, x_icr")
+        g = geometry(run)
+        if not self.y_l - self.y_r > 0:
+            raise ValueError(f"{self.name}: y_l - y_r = {self.y_l - self.y_r!r} must be > 0")
+        info = {"y_l": self.y_l, "y_r": self.y_r, "x_icr": self.x_icr, **dict(self.fit_info)}
+        return _dr_estimate(self.name, run, g, self.y_l, self.y_r, self.x_icr, info)
+
+
+def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -> tuple[float, float, float, dict]:
+    """Constant (y_l, y_r, x_icr) fitted to GNSS body velocities and gyro yaw rate (eqs. (6)-(8)).
+
+    Residuals (m/s): v_x, v_y and ``B/2 * theta_dot``; soft-L1 loss; bounds y_l in (0, clamp],
+    y_r in [-clamp, 0), |x| <= clamp (the [-20, 20] of Sec. V-B-3)."""
+    from scipy.optimize import least_squares
+
+    if not runs:
+        raise ValueError("fit_icr: no calibration runs")
+    vl, vr, vx, vy, wz = [], [], [], [], []
+    track = None
+    for run in runs:
+        _check_channels(run, IcrDr.calibration_requires, IcrDr.name)
+        g = geometry(run)
+        if track is not None and not math.isclose(g.track, track):
+            raise RunError(run.where, "meta.platform.track", g.track, f"calibration runs disagree ({track})")
+        track, r = g.track, g.wheel_radius
+        gx, gy, gyaw = run["gnss_vx"], run["gnss_vy"], run["gnss_yaw"]
+        rows = np.flatnonzero(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gyaw))
+        if rows.size == 0:
+            raise RunError(run.where, "gnss_vx/gnss_vy/gnss_yaw", "no joint sample", "needed to fit the ICR")
+        tg = run.t[rows]
+        c, s = np.cos(gyaw[rows]), np.sin(gyaw[rows])
+        vx.append(c * gx[rows] + s * gy[rows])
+        vy.append(-s * gx[rows] + c * gy[rows])
+        for name, out in (("enc_wl", vl), ("enc_wr", vr)):
+            ts, v = run.samples(name)
+            out.append(r * np.interp(tg, ts, v))
+        ts, v = run.samples("imu_gz")
+        wz.append(np.interp(tg, ts, v))
+    vl_, vr_, vx_, vy_, wz_ = (np.concatenate(a) for a in (vl, vr, vx, vy, wz))
+    moving = np.maximum(np.abs(vl_), np.abs(vr_)) >= min_speed
+    if moving.sum() < 10:
+        raise RunError(runs[0].where, "enc_wl/enc_wr", int(moving.sum()), "too few moving samples to fit the ICR")
+    vl_, vr_, vx_, vy_, wz_ = vl_[moving], vr_[moving], vx_[moving], vy_[moving], wz_[moving]
+    half = 0.5 * track
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        ex, ey, ew = icr_forward(vl_, vr_, p[0], p[1], p[2])
+        return np.concatenate((ex - vx_, ey - vy_, half * (ew - wz_)))
+
+    sol = least_squares(resid, x0=[half, -half, 0.0], bounds=([1e-3, -clamp, -clamp], [clamp, -1e-3, clamp]),
+                        loss="soft_l1", f_scale=0.05, x_scale=[half, half, half])
+    y_l, y_r, x_icr = (float(v) for v in sol.x)
+    rms = float(np.sqrt(np.mean(resid(sol.x) ** 2)))
+    return y_l, y_r, x_icr, {"fit_samples": int(moving.sum()), "fit_rms": rms, "fit_status": int(sol.status)}
+
+
+# --------------------------------------------------------------------------------------------
+# UKF+ICR and MI-UKF
+# --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class LiuUkfParams:
+    """Parameters of the UKF+ICR / MI-UKF (Liu Sec. IV and Appendix); SI units."""
+
+    innovation_length: int = 1  # p of eq. (26); 2 for the MI-UKF (Sec. IV-B-2)
+    mi_a: float = 0.5  # a of eq. (29)
+    sigma: SigmaParams = SigmaParams()
+    # Appendix: measurement noise (std devs) of block 1 (GNSS x, y, yaw, v_x, v_y; gyro) and block 2 (encoder)
+    r_gnss: tuple[float, float, float, float, float, float] = (0.3, 0.3, 0.3, 0.01, 0.01, 0.01)
+    r_encoder: tuple[float, float, float, float, float, float] = (0.5, 0.5, 0.5, 0.02, 0.02, 0.02)
+    # process noise densities per sqrt(s) of w_k in (30): sigma_1,2 (m), sigma_3 (rad), a dT (m/s), sigma_4 (rad/s)
+    q_pos: float = 0.05
+    q_yaw: float = 0.01
+    q_vel: float = 0.2
+    q_yaw_rate: float = 1.0
+    # initial standard deviations (eq. (15)) of pose and velocities
+    p0_pos: float = 0.3
+    p0_yaw: float = 0.1
+    p0_vel: float = 0.2
+    p0_yaw_rate: float = 0.1
+    icr_clamp: float = 20.0  # Sec. V-B-3
+    icr_min_yaw_rate: float = 1e-3  # [rad/s] below: ICR held (not in the paper; avoids 0/0)
+    icr_min_separation: float = 0.05  # [m] y_l - y_r below: ICR held (keeps A_ICR finite)
+    transport_terms: bool = True
+    joseph: bool = True
+    gate: float | None = None  # Mahalanobis gate per element [std]; off as in the paper
+    slip_min_speed: float = 0.05  # [m/s]
+    store_covariance: bool = True  # Estimate.info["P"]: (T, 6, 6) for NEES
+
+    def __post_init__(self) -> None:
+        if self.innovation_length < 1:
+            raise ValueError(f"innovation_length = {self.innovation_length!r}: expected >= 1")
+        for nm in ("r_gnss", "r_encoder"):
+            v = getattr(self, nm)
+            if len(v) != 6 or not all(x > 0 for x in v):
+                raise ValueError(f"{nm} = {v!r}: expected six positive standard deviations")
+        if not self.icr_clamp > 0:
+            raise ValueError(f"icr_clamp = {self.icr_clamp!r}: expected > 0")
+        for nm in ("q_pos", "q_yaw", "q_vel", "q_yaw_rate", "p0_pos", "p0_yaw", "p0_vel", "p0_yaw_rate",
+                   "icr_min_yaw_rate", "icr_min_separation", "slip_min_speed"):
+            v = getattr(self, nm)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"LiuUkfParams.{nm} = {v!r}: expected a finite number >= 0")
+
+
+def liu_fx(sig: np.ndarray, dt: float, u: tuple[float, float, bool]) -> np.ndarray:
+    """Process model (13a-f)/(30), vectorised over sigma points: Euler step of the pose with the
+    body velocities, accelerometer input on v_x, v_y, random-walk yaw rate.  ``u = (a_x, a_y,
+    transport)``: with ``transport`` the body-frame terms +theta_dot v_y, -theta_dot v_x are added."""
+    ax, ay, transport = u
+    out = sig.copy()
+    phi = sig[:, 2]
+    c, s = np.cos(phi), np.sin(phi)
+    vx, vy, w = sig[:, 3], sig[:, 4], sig[:, 5]
+    vxdt, vydt, wdt = vx * dt, vy * dt, w * dt
+    out[:, 0] += vxdt * c - vydt * s
+    out[:, 1] += vxdt * s + vydt * c
+    out[:, 2] += wdt
+    if transport:
+        out[:, 3] += wdt * vy + ax * dt
+        out[:, 4] += ay * dt - wdt * vx
+    else:
+        out[:, 3] += ax * dt
+        out[:, 4] += ay * dt
+    return out
+
+
+_H_IDX = np.array([0, 1, 2, 3, 4, 5, 0, 1, 2, 3, 4, 5])
+
+
+def liu_hx(sig: np.ndarray) -> np.ndarray:
+    """Measurement model of the Appendix: h(x) = (X, Y, phi, v_x, v_y, theta_dot) twice."""
+    return sig[:, _H_IDX]
+
+
+def icr_from_state(vx: float, vy: float, wz: float, v_l: float, v_r: float, clamp: float
+                   ) -> tuple[float, float, float]:
+    """Eqs. (2), (3), (5): y_l = (v_x - r w_l)/theta_dot, y_r = (v_x - r w_r)/theta_dot,
+    x = -v_y/theta_dot, each clamped to [-clamp, clamp]."""
+    def cl(v: float) -> float:
+        return clamp if v > clamp else (-clamp if v < -clamp else v)
+    return cl((vx - v_l) / wz), cl((vx - v_r) / wz), cl(-vy / wz)
+
+
+@dataclass(frozen=True)
+class _LiuUkf:
+    params: LiuUkfParams = LiuUkfParams()
+
+    name: ClassVar[str] = "liu2020._ukf"
+    paper: ClassVar[str] = PAPER
+    requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE | GNSS_VEL | IMU
+
+    def calibrate(self, runs: Sequence[Run]) -> "_LiuUkf":
+        """Nothing to calibrate: the ICR locations are estimated online (Sec. IV-A)."""
+        return self
+
+    def estimate(self, run: Run) -> Estimate:
+        _check_channels(run, self.requires, self.name)
+        return run_liu_filter(run, self.params, self.name)
+
+
+def _gnss_block(run: Run) -> np.ndarray:
+    """(T, 6) block 1 of (32): gnss x, y, yaw, body v_x, v_y (GNSS world velocity rotated by the
+    GNSS heading, as (32) rotates by phi_N) and the gyro yaw rate; NaN where there is no sample."""
+    gx, gy, gyaw = run["gnss_x"], run["gnss_y"], run["gnss_yaw"]
+    gvx, gvy = run["gnss_vx"], run["gnss_vy"]
+    c, s = np.cos(gyaw), np.sin(gyaw)  # NaN yaw -> NaN body velocity (dropped)
+    return np.column_stack((gx, gy, _wrap(gyaw), c * gvx + s * gvy, -s * gvx + c * gvy, run["imu_gz"]))
+
+
+def run_liu_filter(run: Run, p: LiuUkfParams, name: str = "liu2020.mi_ukf", make_filter: Any = Ukf) -> Estimate:
+    """UKF+ICR / MI-UKF over a Run (one filter step per log row).
+
+    ``make_filter`` builds the filter with :class:`bench.ukf.Ukf`'s constructor signature and must
+    offer ``x``, ``P``, ``step``, ``predict(dt, u, Q)`` and ``update(z) -> n_fused``; it exists so
+    that tests and benchmarks can run the identical model on a second UKF implementation."""
+    g = geometry(run)
+    B, r = g.track, g.wheel_radius
+    t = run.t
+    T = t.size
+    dts = np.diff(t)
+    if np.any(~(dts > 0)):
+        run.validate()
+    zg = _gnss_block(run)
+    wl_raw, wr_raw = run["enc_wl"], run["enc_wr"]
+    enc_ok = np.isfinite(wl_raw) & np.isfinite(wr_raw)
+    wl_h, wr_h = _ffill(wl_raw), _ffill(wr_raw)  # latest encoder speeds (for ICR and slip)
+    ax, ay = _ffill(run["imu_ax"]), _ffill(run["imu_ay"])
+
+    x0, y0, yaw0, i0 = _initial_pose(run)
+    vx0 = float(zg[i0, 3]) if np.isfinite(zg[i0, 3]) else 0.0
+    vy0 = float(zg[i0, 4]) if np.isfinite(zg[i0, 4]) else 0.0
+    gz_first = np.flatnonzero(np.isfinite(zg[:, 5]))
+    w0 = float(zg[gz_first[0], 5]) if gz_first.size else 0.0
+    P0 = np.diag(np.square([p.p0_pos, p.p0_pos, p.p0_yaw, p.p0_vel, p.p0_vel, p.p0_yaw_rate]))
+    qc = np.square([p.q_pos, p.q_pos, p.q_yaw, p.q_vel, p.q_vel, p.q_yaw_rate])
+    R = np.diag(np.square(np.concatenate((p.r_gnss, p.r_encoder))))
+    kf = make_filter(liu_fx, liu_hx, [x0, y0, yaw0, vx0, vy0, w0], P0, np.diag(qc), R, sigma=p.sigma,
+                     x_angles=(2,), z_angles=(2, 8), joseph=p.joseph, gate=p.gate,
+                     mi_weights=mi_weights(p.innovation_length, p.mi_a))
+
+    X = np.empty((T, 6))
+    icr = np.empty((T, 3))
+    Ps = np.empty((T, 6, 6)) if p.store_covariance else None
+    X[0] = kf.x
+    if Ps is not None:
+        Ps[0] = kf.P
+    yl, yr, xi = 0.5 * B, -0.5 * B, 0.0  # initial ICR (Sec. V-B-3)
+    icr[0] = (yl, yr, xi)
+    clamp, wmin, dmin = p.icr_clamp, p.icr_min_yaw_rate, p.icr_min_separation
+    transport = bool(p.transport_terms)
+    z = np.empty(12)
+    nan6 = np.full(6, np.nan)
+    last_dt, Q = None, None
+    n_fused = np.zeros(T, dtype=np.int16)
+    dts_l, ax_l, ay_l = dts.tolist(), ax.tolist(), ay.tolist()
+    wl_l, wr_l, wlh_l, wrh_l, enc_l = wl_raw.tolist(), wr_raw.tolist(), wl_h.tolist(), wr_h.tolist(), enc_ok.tolist()
+    try:
+        for k in range(1, T):
+            dt = dts_l[k - 1]
+            if dt != last_dt:
+                Q, last_dt = np.diag(qc * dt), dt
+            Xp, Yp, php = kf.x[:3].tolist()  # posterior at k-1
+            kf.step = k - 1
+            kf.predict(dt, (ax_l[k - 1], ay_l[k - 1], transport), Q)
+            z[:6] = zg[k]
+            if enc_l[k]:  # Appendix: encoder-ICR pseudo-measurement with A_ICR of eq. (11)
+                v_l, v_r = r * wl_l[k], r * wr_l[k]
+                d = yl - yr
+                evx = (yl * v_r - yr * v_l) / d
+                ew = (v_r - v_l) / d
+                evy = -xi * ew
+                ph = php + ew * dt
+                c, s = math.cos(ph), math.sin(ph)
+                z[6:] = (Xp + (evx * c - evy * s) * dt, Yp + (evx * s + evy * c) * dt, ph, evx, evy, ew)
+            else:
+                z[6:] = nan6
+            n_fused[k] = kf.update(z)
+            xk = kf.x
+            X[k] = xk
+            if Ps is not None:
+                Ps[k] = kf.P
+            vx_, vy_, wz = xk[3:].tolist()
+            if abs(wz) >= wmin:  # eqs. (2), (3), (5) on the posterior, clamped to [-20, 20]
+                a, b, c_ = icr_from_state(vx_, vy_, wz, r * wlh_l[k], r * wrh_l[k], clamp)
+                if a - b >= dmin:
+                    yl, yr, xi = a, b, c_
+            icr[k] = (yl, yr, xi)
+    except FilterError as exc:
+        raise FilterError(exc.step, exc.stage,
+                          f"{exc.detail} ({name}, run {run.where}, t = {t[min(exc.step, T - 1)]:.3f} s)") from None
+
+    v_l, v_r = r * wl_h, r * wr_h
+    sl, sr = slip_rates(v_l, v_r, X[:, 3], X[:, 5], B, p.slip_min_speed)
+    info: dict[str, Any] = {
+        "state": STATE_NAMES, "params": dataclasses.asdict(p), "n_fused": n_fused,
+        "gnss_updates": int(np.isfinite(zg[:, 0]).sum()),
+    }
+    if Ps is not None:
+        info["P"] = Ps
+    return make_estimate(
+        name, info, t=t, x=X[:, 0], y=X[:, 1], yaw=X[:, 2], vx=X[:, 3], vy=X[:, 4], wz=X[:, 5],
+        y_l=icr[:, 0], y_r=icr[:, 1], x_icr=icr[:, 2], chi=(icr[:, 0] - icr[:, 1]) / B,
+        slip_l=sl, slip_r=sr, wl=wl_h, wr=wr_h,
+    )
+
+
+@dataclass(frozen=True)
+class UkfIcr(_LiuUkf):
+    """UKF+ICR of Liu Figs. 6-20 / Table 2: the MI-UKF with lambda_2 = 0 (standard UKF, eq. (24))."""
+
+    params: LiuUkfParams = LiuUkfParams(innovation_length=1)
+    name: ClassVar[str] = "liu2020.ukf_icr"
+
+
+@dataclass(frozen=True)
+class MiUkf(_LiuUkf):
+    """MI-UKF of Liu Sec. IV: multi-innovation update (28) with p = 2, a = 0.5 (eq. (29))."""
+
+    params: LiuUkfParams = LiuUkfParams(innovation_length=2, mi_a=0.5)
+    name: ClassVar[str] = "liu2020.mi_ukf"
