@@ -228,3 +228,11 @@ def _verify(a: argparse.Namespace) -> int:
 
 
 command("verify-runs", "re-simulate the runs of a manifest and check identical content hashes")((_verify_args, _verify))
+
+
+@register_extra("league")
+def _extra_league(results_dir: Path, quick: bool) -> None:
+    from bench.league import write_league
+    from bench.runner import Runner
+
+    write_league(results_dir, quick, Runner(workers=os.cpu_count() or 1))

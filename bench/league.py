@@ -1,0 +1,191 @@
+"""Cross-paper league table: every registered method on every league scenario where its
+sensors exist; position RMS against the testbed truth, mean and 95% bootstrap interval over
+seeds (``results/league.md``, ``results/league.csv``).
+
+Fairness rules:
+
+* Each method is calibrated once per (platform, terrain) on a *calibration set* simulated on the
+  same platform and terrain but with other commands and seeds (pure rotation, straight line,
+  steady circles at curvature ratios 1..7, a joystick-like random path; seeds >= 1000): never on
+  a scored run, which ``bench.registry.estimate`` also enforces.  Each method takes from the set
+  what its paper's identification uses (Mandow: rotation + straight, GA on the random path;
+  Wang: the steady circles; Yi: S(gamma) from the turns; Liu: ICR from the reference).
+* Scored runs: the league scenarios with seeds 0..n-1; identical runs for every method.
+* A method whose calibration or estimate fails on a scenario gets an empty cell with the error in
+  the notes, not a silent zero.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from scipy import stats
+
+from bench import registry
+from bench.metrics import Trajectory, position_rms
+from bench.report.io import atomic_write_text
+from bench.runner import Runner
+from bench.spec import CommandSpec, Scenario, Segment, load_scenario
+
+LEAGUE_SCENARIOS = (
+    "circle_vinyl", "wang_validation_path", "yu_lemniscate", "mandow_joystick_asphalt_pneumatic_20psi",
+    "yi_circle", "yi_figure8", "liu_large_radius", "liu_small_radius",
+)
+CALIBRATION_SEED = 1000
+
+
+def calibration_set(scn: Scenario, quick: bool = False) -> list[tuple[Scenario, int]]:
+    """Runs on the scenario's platform and terrain with other commands (never the scored path)."""
+    plat = scn.platform
+    v = min(0.3, 0.15 * plat.wheel_radius / 0.1075 * 2)  # a moderate tread speed for the platform
+    dur = 6.0 if quick else 10.0
+    reqs: list[tuple[Scenario, int]] = [
+        (dataclasses.replace(scn, id=f"{scn.id}-cal-rotation", command=CommandSpec(kind="rotation", v=v), duration=dur,
+                             initial_speed=0.0), CALIBRATION_SEED),
+        (dataclasses.replace(scn, id=f"{scn.id}-cal-straight", command=CommandSpec(
+            kind="v_radius", segments=(Segment(dur, 2 * v, math.inf),), accel=1.0), duration=dur, initial_speed=0.0),
+         CALIBRATION_SEED),
+    ]
+    for lam in ((2.0, 5.0) if quick else (1.0, 2.0, 3.0, 5.0, 7.0)):
+        reqs.append((dataclasses.replace(scn, id=f"{scn.id}-cal-circle{lam:g}", command=CommandSpec(
+            kind="v_curvature_ratio", segments=(Segment(dur, 2 * v, lam),)), duration=dur, initial_speed=0.0),
+            CALIBRATION_SEED))
+    reqs.append((dataclasses.replace(scn, id=f"{scn.id}-cal-random", command=CommandSpec(
+        kind="random", step=2.0, v_max=2 * v, w_max=1.0, accel=1.0), duration=30.0 if quick else 60.0,
+        initial_speed=0.0), CALIBRATION_SEED + 1))
+    return reqs
+
+
+@dataclass
+class Cell:
+    method: str
+    scenario: str
+    values: list[float]
+    error: str = ""
+    note: str = ""
+
+    def summary(self) -> tuple[float, float, float]:
+        v = np.asarray([x for x in self.values if math.isfinite(x)])
+        if v.size == 0:
+            return math.nan, math.nan, math.nan
+        if v.size < 3 or np.ptp(v) == 0:
+            return float(v.mean()), float(v.min()), float(v.max())
+        ci = stats.bootstrap((v,), np.mean, confidence_level=0.95, n_resamples=2000, method="percentile",
+                             random_state=np.random.default_rng(0)).confidence_interval
+        return float(v.mean()), float(ci.low), float(ci.high)
+
+
+def _score(run: Any, est: Any) -> float:
+    """Position RMS of the estimate against the truth (planar; z ignored)."""
+    d = run.data
+    ref = Trajectory.planar(d["t"], d["truth_x"], d["truth_y"], d["truth_yaw"], name="truth")
+    e = est.data
+    ok = np.isfinite(e["x"].to_numpy()) & np.isfinite(e["y"].to_numpy()) & np.isfinite(e["yaw"].to_numpy())
+    return position_rms(ref, Trajectory.planar(e["t"][ok], e["x"][ok], e["y"][ok], e["yaw"][ok], name=est.method))
+
+
+def _calibrate(name: str, cal: list, note: list[str]) -> Any:
+    """Calibrate on the whole set; a method that rejects some kinds of run gets the steady runs
+    only; one that still fails runs with its published defaults (said in the notes)."""
+    try:
+        return registry.calibrate(registry.get(name), cal)
+    except Exception as exc:
+        first = f"{type(exc).__name__}: {str(exc).split(': ', 1)[-1][:90]}"
+    steady = [r for r in cal if r.meta.get("scenario_kind") != "random"]
+    try:
+        m = registry.calibrate(registry.get(name), steady)
+        note.append(f"calibrated on the steady runs only ({first})")
+        return m
+    except Exception as exc:
+        note.append(f"uncalibrated, published defaults ({type(exc).__name__}: {str(exc)[:100]})")
+        return registry.get(name)
+
+
+def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: list[str] | None = None,
+               scenarios: tuple[str, ...] = LEAGUE_SCENARIOS, log: Callable[[str], None] = lambda s: None
+               ) -> list[Cell]:
+    names = methods or list(registry.discover())
+    cells: list[Cell] = []
+    seeds = range(2 if quick else n_seeds)
+    for sname in scenarios:
+        scn = load_scenario(sname, {"duration": 12.0} if quick else None)
+        cal = runner.simulate_many(calibration_set(scn, quick))
+        scored = runner.simulate_many([(scn, s) for s in seeds])
+        log(f"league: {sname} ({len(cal)} calibration runs, {len(scored)} scored)")
+        for name in names:
+            cell = Cell(name, sname, [])
+            try:
+                if not registry.get(name).requires <= set(scored[0].data.columns):
+                    cell.error = "sensors absent"
+                    cells.append(cell)
+                    continue
+                note: list[str] = []
+                m = _calibrate(name, cal, note)
+                cell.note = "; ".join(note)
+                for run in scored:
+                    cell.values.append(_score(run, registry.estimate(m, run)))
+            except Exception as exc:  # reported in the table, never a silent number
+                cell.error = f"{type(exc).__name__}: {str(exc)[:120]}"
+            cells.append(cell)
+    return cells
+
+
+def league_markdown(cells: list[Cell], n_seeds: int) -> str:
+    scen = list(dict.fromkeys(c.scenario for c in cells))
+    meths = list(dict.fromkeys(c.method for c in cells))
+    by = {(c.method, c.scenario): c for c in cells}
+    lines = [
+        "# League table: position RMS against the testbed truth [m]", "",
+        f"Mean and 95% bootstrap interval over {n_seeds} seeds per scenario; each method calibrated on a",
+        "separate calibration set of the scenario's platform and terrain (bench/league.py). Lower is better;",
+        "the best mean per scenario is in bold. Empty cells: the method failed (see notes) or lacks sensors.", "",
+        "| method | " + " | ".join(scen) + " |", "|---|" + "---|" * len(scen),
+    ]
+    best = {}
+    for s in scen:
+        means = [(by[(m, s)].summary()[0], m) for m in meths if (m, s) in by and by[(m, s)].values]
+        means = [x for x in means if math.isfinite(x[0])]
+        best[s] = min(means)[1] if means else None
+    notes = []
+    for m in meths:
+        row = [m]
+        for s in scen:
+            c = by.get((m, s))
+            if c is None or not c.values:
+                row.append("")
+                if c is not None and c.error:
+                    notes.append(f"- {m} on {s}: {c.error}")
+                continue
+            if c.note:
+                notes.append(f"- {m} on {s}: {c.note}")
+            mean, lo, hi = c.summary()
+            txt = f"{mean:.3g} [{lo:.3g}, {hi:.3g}]"
+            row.append(f"**{txt}**" if best[s] == m else txt)
+        lines.append("| " + " | ".join(row) + " |")
+    if notes:
+        lines += ["", "Notes:", *notes]
+    return "\n".join(lines) + "\n"
+
+
+def league_csv(cells: list[Cell]) -> str:
+    out = ["method,scenario,mean,ci_low,ci_high,n,values,error"]
+    for c in cells:
+        mean, lo, hi = c.summary()
+        vals = ";".join(f"{v:.6g}" for v in c.values)
+        out.append(f"{c.method},{c.scenario},{mean:.6g},{lo:.6g},{hi:.6g},{len(c.values)},{vals},\"{c.error}\"")
+    return "\n".join(out) + "\n"
+
+
+def write_league(results_dir: Path, quick: bool, runner: Runner | None = None,
+                 log: Callable[[str], None] = print) -> list[Cell]:
+    runner = runner or Runner(workers=2)
+    n = 2 if quick else 5
+    cells = run_league(runner, n_seeds=n, quick=quick, log=log)
+    suffix = "_quick" if quick else ""
+    atomic_write_text(results_dir / f"league{suffix}.md", league_markdown(cells, n))
+    atomic_write_text(results_dir / f"league{suffix}.csv", league_csv(cells))
+    return cells
