@@ -208,6 +208,7 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     out_dir = results_dir / paper
     ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick)
     module = importlib.import_module(decl["module"])
+    runner.served.clear()
     metrics: dict[str, float] = {}
     t0 = time.perf_counter()
     tables = []
@@ -226,6 +227,9 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     for c in decl.get("claims", []):
         holds, text = evaluate_claim(c, metrics)
         claims.append({**c, "holds": holds, "measured": text, "why": ctx.notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")})
+    served = sorted(set(runner.served))
+    ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
+    ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
     res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
     write_paper(res, out_dir)
     return res
@@ -352,8 +356,9 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         lines.append(f'<a id="{res.paper}"></a>')
         lines.append(paper_markdown(res))
         seeds = res.info.get("seeds")
-        if seeds is not None:
-            lines.append(f"Seeds: {seeds}\n")
+        if seeds:
+            lines.append(f"Seeds: {seeds}; {len(res.info.get('runs', []))} simulated runs "
+                         f"(listed with their content hashes in runs_manifest.json).\n")
     path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
     atomic_write_text(path, "\n".join(lines))
     return path

@@ -61,6 +61,7 @@ class Runner:
     progress: Callable[[int, int], None] | None = None
     stats: dict = field(default_factory=lambda: {"simulated": 0, "cached": 0})
     manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})
+    served: list = field(default_factory=list)  # (scenario id, seed) of every run handed out
 
     def path_for(self, scn: Scenario, seed: int) -> Path:
         return Path(self.cache_dir) / f"{cache_key(scn, seed)}.parquet"
@@ -91,6 +92,7 @@ class Runner:
 
         sh = scenario_hash(scn)
         self.manifest["scenarios"].setdefault(sh, to_dict(scn))
+        self.served.append((scn.id, int(seed)))
         self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
                                       "content_hash": run.content_hash()}
 
