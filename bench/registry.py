@@ -19,6 +19,7 @@ ENTRY_POINT_GROUP = "skidbench.methods"
 ESTIMATE_REQUIRED = ("t", "x", "y", "yaw")
 ESTIMATE_OPTIONAL = (
     "vx", "vy", "wz", "slip_l", "slip_r", "y_l", "y_r", "x_icr", "tau_l", "tau_r", "wl", "wr", "chi",
+    "z", "vz", "roll", "pitch",
 )
 
 

@@ -27,6 +27,7 @@ Paper equation -> code
   (24) gravity G(q) ...................... params.YuParams.gravity, simulate._integrate
   (26) DC motor torque-speed line ........ simulate._integrate (closed loop), params.R_a/K_B
   (27) controller voltage limit .......... params.YuParams.V_max
+  motor power limit (abstract, V-B) ...... params.YuParams.P_max, simulate._integrate
   Fig. 4 modified PID .................... simulate._integrate
   Fig. 16 open loop (tau = K_tau V) ...... simulate.simulate_open_loop, plugin.Yu2010OpenLoop
   (28) identification, Table I ........... identification.identify, identify_from_speeds

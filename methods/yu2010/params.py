@@ -30,7 +30,9 @@ class YuParams:
     nominal voltage ``V``; ``K_T`` torque constant [N m/A]; ``I_max`` current limit [A]; ``g_r``
     gear ratio; ``n_motors`` motors per side (the P3-AT has one per wheel, two per side).
     ``I_motor``/``D_motor``: rotor inertia and viscous damping (Table II; neglected by Yu, used
-    only when ``motor_dynamics`` is True).
+    only when ``motor_dynamics`` is True).  ``P_max``: continuous mechanical power limit of one
+    motor [W], |tau_m w_m| <= P_max (the "motor power limitations" of Yu's abstract and Sec. V-B;
+    Table II gives no value, so 0 = no limit unless the platform's ``motor.max_power`` sets it).
     Motor controller (eq. (27)): ``PWM`` duty limit, ``V_CC`` supply, ``U_loss`` controller loss;
     ``vmax_current_term``: subtract (27)'s current term R_a |I| from the limit (see
     :mod:`methods.yu2010.simulate`).
@@ -68,6 +70,7 @@ class YuParams:
     n_motors: int = 2
     I_motor: float = 0.000007
     D_motor: float = 0.000003
+    P_max: float = 0.0
     motor_dynamics: bool = False
     # motor controller (Table II, eq. (27))
     PWM: float = 0.95
@@ -103,6 +106,8 @@ class YuParams:
             raise ValueError(f"YuParams.mu_roll = {self.mu_roll!r}: expected in [0, 1)")
         if self.mu_rule not in ("consistent", "motor"):
             raise ValueError(f"YuParams.mu_rule = {self.mu_rule!r}: expected 'consistent' or 'motor'")
+        if not (math.isfinite(self.P_max) and self.P_max >= 0):
+            raise ValueError(f"YuParams.P_max = {self.P_max!r}: expected a finite number >= 0 (0 = no limit)")
         if self.U_loss >= self.V_CC:
             raise ValueError(f"YuParams.U_loss = {self.U_loss!r}: expected < V_CC = {self.V_CC}")
 
@@ -146,6 +151,12 @@ class YuParams:
     def side_emf_damping(self) -> float:
         """Back-EMF damping of one side at the wheel: n g_r^2 K_T K_B / R_a [N m s/rad]."""
         return self.n_motors * self.g_r**2 * self.K_T * self.K_B / self.R_a
+
+    @property
+    def side_power(self) -> float:
+        """Largest mechanical power of one side, n P_max [W] (0 = no limit): the side torque at the
+        wheel obeys |tau w| <= n P_max, since tau_m w_m = (tau / (n g_r)) (g_r w)."""
+        return self.n_motors * self.P_max
 
     @property
     def side_current_torque(self) -> float:
@@ -210,6 +221,7 @@ class YuParams:
                 V_CC=float(motor.get("supply_voltage", self.V_CC)),
                 U_loss=float(motor.get("controller_loss", self.U_loss)),
                 n_motors=int(motor.get("motors_per_side", self.n_motors)),
+                P_max=float(motor.get("max_power", self.P_max)),
             )
         pid = _as_mapping(p.get("pid"))
         if pid:

@@ -1,7 +1,8 @@
 """skidbench method plugins of Yu 2010: closed-loop (Fig. 3) and open-loop (Fig. 16) prediction.
 
 ``estimate(run)`` predicts from the commands (and, for the open loop, the measured torques) and
-the initial state only: wheel speeds from the first encoder sample (0 when absent), initial pose
+the initial state only: wheel speeds from the first encoder sample after the first time stamp
+within 50 ms (0 when absent), initial pose
 from the first reference (else GNSS) sample (0 when absent).  The pose follows from the simulated
 wheel speeds through the kinematic model eq. (1) with alpha (body frame x forward:
 vx = r (w_l + w_r)/2, vy = 0, wz = r (w_r - w_l)/(alpha B)), integrated exactly on SE(2).
@@ -92,10 +93,16 @@ def steady_summary(run: Run, settle: float = 1.0, settle_fraction: float = 0.3) 
     return SteadySummary(run.id, float(cl[-1]), float(cr[-1]), wl, wr, tl, tr, yaw_rate, float(t0), float(end))
 
 
-def _first_sample(run: Run, name: str, t_max: float) -> float | None:
+def _first_sample(run: Run, name: str, t_max: float, after: float | None = None) -> float | None:
+    """First finite sample of ``name`` up to ``t_max``; with ``after``, the first one strictly
+    later than ``after`` if there is one (else the first)."""
     if name not in run.data.columns:
         return None
     t, v = run.samples(name)
+    if after is not None:
+        later = np.flatnonzero((t > after) & (t <= t_max))
+        if later.size:
+            return float(v[later[0]])
     if t.size == 0 or t[0] > t_max:
         return None
     return float(v[0])
@@ -134,8 +141,10 @@ class Yu2010:
     def _initial_state(self, run: Run) -> tuple[tuple[float, float], tuple[float, float, float]]:
         t0 = float(run.t[0])
         near = t0 + 0.05
-        wl = _first_sample(run, "enc_wl", near)
-        wr = _first_sample(run, "enc_wr", near)
+        # an encoder speed is a count difference: a sample at the very first time stamp has no
+        # earlier count and reads 0 even when the vehicle already moves (Yu's ramps start at speed)
+        wl = _first_sample(run, "enc_wl", near, after=t0)
+        wr = _first_sample(run, "enc_wr", near, after=t0)
         w0 = (wl or 0.0, wr or 0.0) if wl is not None and wr is not None else (0.0, 0.0)
         for px, py, pyaw in (("ref_x", "ref_y", "ref_yaw"), ("gnss_x", "gnss_y", "gnss_yaw")):
             x, y, yaw = (_first_sample(run, c, t0 + 1.0) for c in (px, py, pyaw))

@@ -3,7 +3,9 @@
 Per side (Fig. 3): modified PID (Fig. 4, derivative on the reference) on the linear speed error
 e = r (w_d - w) -> motor voltage clamped to the controller limit of eq. (27) -> DC motor
 torque-speed line (26), tau_m = (K_T/R_a)(V - K_B w_m), w_m = g_r w, with the current limit
-|I| <= I_max -> side torque n g_r tau_m -> dynamics (25): M q_ddot + C(q_dot) + G(q) = tau.
+|I| <= I_max and the motor power limit |tau_m w_m| <= P_max (when ``YuParams.P_max`` > 0; the
+"motor power limitations" of Yu's abstract, value from the platform's motor) -> side torque
+n g_r tau_m -> dynamics (25): M q_ddot + C(q_dot) + G(q) = tau.
 
 Eq. (27) (simplification, documented): V_m,max = PWM (V_CC - U_loss) - (dn/dtau) K_T I_m / K_n.
 With the motor's speed-torque gradient dn/dtau = R_a/(K_T K_B) and K_n = 1/K_B the current term
@@ -15,7 +17,7 @@ halved, the no-load speed unchanged): that is our literal reading of (26)+(27);
 ``YuParams.vmax_current_term = False`` clamps at PWM (V_CC - U_loss) only.
 
 The open loop replaces PID + controller by a given torque tau = K_tau V (Fig. 16 replays the
-measured torque), clipped to the same motor limits.
+measured torque), clipped to the same motor limits (torque-speed line at V_max, current, power).
 
 Integration: step at ``dt`` (default 1 kHz), linearly implicit in the resistance only:
 (M + dt J) dq_dot = dt (tau - C - G), J = dC/dq_dot from the table slopes; this stays stable where
@@ -98,6 +100,7 @@ def _integrate(params: YuParams, table: ResistanceTable, n: int, dt: float, ref_
     else:
         kw_visc = 0.0
     tcap = p.side_current_torque
+    pside = p.side_power
     M = p.mass_matrix()
     m11, m12 = float(M[0, 0]), float(M[0, 1])
     detM = m11 * m11 - m12 * m12
@@ -174,6 +177,11 @@ def _integrate(params: YuParams, table: ResistanceTable, n: int, dt: float, ref_
             vr = (tr + kw * wr) / kv
         tl = tcap if tl > tcap else (-tcap if tl < -tcap else tl)
         tr = tcap if tr > tcap else (-tcap if tr < -tcap else tr)
+        if pside > 0.0:  # motor power limit: |tau_m w_m| <= P_max, i.e. |tau w| <= n P_max per side
+            if tl * tl * wl * wl > pside * pside:
+                tl = pside / abs(wl) if tl > 0.0 else -pside / abs(wl)
+            if tr * tr * wr * wr > pside * pside:
+                tr = pside / abs(wr) if tr > 0.0 else -pside / abs(wr)
         # ---------------------------------------------------------------- resistance C (table)
         if ramp_pending and dist >= ramp_start:
             gq, cb = g_slope, cb_slope
