@@ -87,7 +87,7 @@ class PidSpec:
     kp: float = 30.25
     ki: float = 151.25
     kd: float = 0.0605
-    rate_hz: float = 1000.0
+    rate_hz: float = 1000.0  # controller sampling rate; the testbed runs it at min(rate_hz, 1/dt)
     gain_scale: float = 1.0  # Yu's gains are on the linear speed [m/s]: scale = wheel radius
 
     _checks = {
