@@ -36,6 +36,17 @@ def register_extra(name: str):
     return deco
 
 
+def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
+    """A marker per (extra, everything it depends on): code, specs, data, output folder."""
+    from bench.reproduce import code_key
+    from bench.runner import DEFAULT_CACHE
+
+    table = data_root() / "drive_husky" / "husky_windows.parquet"
+    data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
+    key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id)
+    return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
+
+
 def _reproduce(a: argparse.Namespace) -> int:
     from bench import reproduce as R
 
@@ -58,8 +69,14 @@ def _reproduce(a: argparse.Namespace) -> int:
             R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
                         results_dir=results_dir, log=log, progress=progress)
         for name in extras:
+            marker = _extra_marker(name, results_dir, a.quick)
+            if marker.is_file():
+                log(f"{name}: unchanged since the last run, results kept")
+                continue
             log(f"extra: {name}")
             EXTRAS[name](results_dir, a.quick)
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.write_text("done\n")
     print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
     return 0
 

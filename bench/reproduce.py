@@ -34,9 +34,12 @@ nothing is written by hand.  Every file is written atomically.
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
 import json
+import pickle
 import math
+import os
 import platform as _platform
 import subprocess
 import time
@@ -46,7 +49,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from bench.report.io import atomic_write_json, atomic_write_text
+from bench.report.io import atomic_path, atomic_write_json, atomic_write_text
 from bench.runner import REPO, Runner
 from bench.spec import SCENARIO_DIR, SpecError
 
@@ -199,13 +202,60 @@ class PaperResult:
     notes: dict[str, str]
     seconds: float
     info: dict[str, Any]
+    figure_bytes: dict[str, bytes] = field(default_factory=dict)
+
+
+def code_key(*extra: str) -> str:
+    """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
+    platform, terrain and paper files, the installed package versions, plus ``extra``."""
+    h = hashlib.sha256()
+    for folder, pattern in (("bench", "**/*.py"), ("methods", "**/*.py"), ("scenarios", "**/*.toml")):
+        for p in sorted((REPO / folder).glob(pattern)):
+            h.update(str(p.relative_to(REPO)).encode())
+            h.update(p.read_bytes())
+    h.update(json.dumps(package_versions(), sort_keys=True).encode())
+    h.update(json.dumps(sorted((k, v) for k, v in os.environ.items() if k.startswith("SKIDBENCH_")
+                               and k != "SKIDBENCH_CACHE")).encode())
+    for e in extra:
+        h.update(e.encode())
+    return h.hexdigest()[:24]
+
+
+def _result_cache(runner: Runner) -> Path:
+    return Path(runner.cache_dir).parent / "result-cache"
+
+
+def _cached_result(folder: Path, name: str, key: str) -> PaperResult | None:
+    path = folder / f"{name}-{key}.pkl"
+    if not path.is_file():
+        return None
+    try:
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
+        return None
+
+
+def _store_result(folder: Path, name: str, key: str, res: PaperResult) -> None:
+    with atomic_path(folder / f"{name}-{key}.pkl") as tmp:
+        with open(tmp, "wb") as fh:
+            pickle.dump(res, fh)
 
 
 def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quick: bool = False,
-                    log: Callable[[str], None] = lambda s: None) -> PaperResult:
+                    log: Callable[[str], None] = lambda s: None, use_cache: bool = True) -> PaperResult:
+    """Compute one paper's tables and claims and write ``results/<paper>/``.  When nothing the
+    result depends on changed (:func:`code_key`), the previous result is re-written from the
+    result cache instead of being recomputed."""
     decl = load_paper(name)
     paper = decl["paper"]
     out_dir = results_dir / paper
+    key = code_key(paper, str(quick), decl["_path"])
+    if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
+        log(f"{paper}: unchanged since the last run, results taken from the cache")
+        write_paper(hit, out_dir)
+        _copy_figures(hit, out_dir)
+        return hit
     ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick)
     module = importlib.import_module(decl["module"])
     runner.served.clear()
@@ -232,7 +282,20 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
     res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
     write_paper(res, out_dir)
+    res.figure_bytes = {rel: (out_dir.parent / rel).read_bytes() for rel, _ in ctx.figures
+                        if (out_dir.parent / rel).is_file()}
+    if use_cache:
+        _store_result(_result_cache(runner), paper, key, res)
     return res
+
+
+def _copy_figures(res: PaperResult, out_dir: Path) -> None:
+    """Figures of a cached result, written back when missing (e.g. into another results folder)."""
+    for rel, data in getattr(res, "figure_bytes", {}).items():
+        target = out_dir.parent / rel
+        if not target.is_file() or target.read_bytes() != data:
+            with atomic_path(target) as tmp:
+                tmp.write_bytes(data)
 
 
 def _table_md(tab: Mapping[str, Any], notes: Mapping[str, str]) -> str:

@@ -153,3 +153,13 @@ def test_manifest_reproduces_in_fresh_processes(paper_dir, tmp_path):
     man.write_text(json.dumps(bad))
     out = subprocess.run([sys.executable, "-m", "bench.cli", "verify-runs", str(man)], capture_output=True, text=True)
     assert out.returncode == 1 and "MISMATCH" in out.stdout
+
+
+def test_second_reproduce_comes_from_the_result_cache(paper_dir, tmp_path):
+    runner = Runner(cache_dir=tmp_path / "cache")
+    first = R.reproduce_paper("fake", runner, tmp_path / "a")
+    runner2 = Runner(cache_dir=tmp_path / "cache")
+    second = R.reproduce_paper("fake", runner2, tmp_path / "b")
+    assert runner2.stats == {"simulated": 0, "cached": 0}  # not even a cached run was read
+    assert second.metrics == first.metrics
+    assert (tmp_path / "a" / "fake" / "t1.md").read_text() == (tmp_path / "b" / "fake" / "t1.md").read_text()
