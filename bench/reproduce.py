@@ -69,7 +69,8 @@ class Context:
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     figures: list[tuple[str, str]] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
-    info: dict[str, Any] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)  # persisted with the result (keep it small)
+    scratch: dict[str, Any] = field(default_factory=dict)  # shared between compute functions, never persisted
 
     def simulate(self, scn: Any, seed: int = 0):
         return self.runner.simulate(scn, seed)

@@ -185,6 +185,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         # a slower controller holds its output between samples.
         pid_every = max(1, int(round(1.0 / (dt * plat.pid.rate_hz))))
         volts = [0.0, 0.0]
+        k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
         w = [0.0, 0.0]
         th = [0.0, 0.0]
         tau = [0.0, 0.0]
@@ -340,7 +341,10 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 mz += c * smz
                 w[s] += dw
                 th[s] += w[s] * dt
-                tau[s], cur[s] = tq, cu
+                # log what the wheel update applied: the linearised torque at the new wheel speed
+                # (the open-loop replay of Yu Fig. 16 integrates exactly this impulse)
+                tau[s] = tq + dtq * dw
+                cur[s] = cu + dtq * dw / k_amp
             if k >= 0:
                 rows.append((
                     t_now, pos[0], pos[1], pos[2], orn[0], orn[1], orn[2], orn[3],
