@@ -24,7 +24,7 @@ import numpy as np
 
 from bench.sim.commands import wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_side_torque
-from bench.sim.tire import friction_coefficient, tire_force
+from bench.sim.tire import friction_coefficient, tire_law
 from bench.spec import Scenario
 
 
@@ -185,6 +185,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         # a slower controller holds its output between samples.
         pid_every = max(1, int(round(1.0 / (dt * plat.pid.rate_hz))))
         volts = [0.0, 0.0]
+        law = tire_law(janosi, terr.mu_lat_ratio, K, k_lat, patch_wheel, eps, k_max)
         k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
         w = [0.0, 0.0]
         th = [0.0, 0.0]
@@ -286,8 +287,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                                 if fp.t_period > 0:
                                     scale = 1.0 + (fp.mu_scale - 1.0) * 0.5 * (1 - math.cos(2 * math.pi * t_now / fp.t_period))
                                 mu *= scale
-                    f_lon, f_lat, stiff = tire_force(v_lon - u, v_lat, u, v_lon, nf, mu, mu_lat_ratio,
-                                                     janosi, K, k_lat, patch_wheel, eps, k_max)
+                    f_lon, f_lat, stiff = law(v_lon - u, v_lat, u, v_lon, nf, mu)
                     if abs(u) < eps and abs(v_lon) < eps and abs(v_lat) < eps:
                         # standing wheel: the patch sticks. Its elastic deflection (a bristle
                         # spring, LuGre-like) holds the robot on a slope without creep; the

@@ -24,6 +24,7 @@ Bullet's chassis integration stays stable at tiny slips (DESIGN.md testbed notes
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 
 def friction_coefficient(mu_sa: float, mu_op: float, torque: float, w: float, scale: float = 0.05) -> float:
@@ -40,22 +41,12 @@ def janosi_fraction(j_max: float, K: float) -> float:
     return 1.0 - (1.0 - math.exp(-z)) / z
 
 
-def tire_force(
-    s_lon: float,
-    s_lat: float,
-    u: float,
-    v_lon: float,
-    normal: float,
-    mu: float,
-    mu_lat_ratio: float,
-    model_janosi: bool,
-    K: float,
-    K_lat_ratio: float,
-    patch: float,
-    eps: float,
-    k_max: float,
-) -> tuple[float, float, float]:
-    """Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact, and the
+def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: float, patch: float,
+             eps: float, k_max: float) -> Callable[[float, float, float, float, float, float], tuple[float, float, float]]:
+    """The terrain's tire law with its constants bound (called 4 times per physics step):
+    ``law(s_lon, s_lat, u, v_lon, normal, mu) -> (F_lon, F_lat, stiffness)``.
+
+    Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact, and the
     secant stiffness |F| / |s| [N s/m] used by the semi-implicit wheel-spin update (for a
     saturating law the secant bounds the tangent from above, so the update stays stable; the
     steady state does not depend on it).
@@ -67,24 +58,39 @@ def tire_force(
     displacement while the patch adheres and turns to the sliding direction as it saturates
     (brush-model behaviour: Coulomb direction in full sliding).
     """
-    if normal <= 0.0:
-        return 0.0, 0.0, 0.0
-    s = math.hypot(s_lon, s_lat)
-    if s < 1e-12:
-        return 0.0, 0.0, k_max
-    if model_janosi:
-        v_ref = max(abs(u), math.hypot(v_lon, s_lat), eps)
-        z_lon = s_lon * patch / (v_ref * K)
-        z_lat = s_lat * patch / (v_ref * K * K_lat_ratio)
-        z = math.hypot(z_lon, z_lat)
-        frac = janosi_fraction(z, 1.0)
-        d_lon = (1.0 - frac) * z_lon / z + frac * s_lon / s
-        d_lat = (1.0 - frac) * z_lat / z + frac * s_lat / s
-    else:
-        frac = s / math.sqrt(s * s + eps * eps)
-        d_lon, d_lat = s_lon / s, s_lat / s
-    mag = mu * normal * frac
-    cap = k_max * s
-    if mag > cap:
-        mag = cap
-    return -mag * d_lon, -mag * mu_lat_ratio * d_lat, mag / s
+    hypot, exp = math.hypot, math.exp
+    c_lon = patch / K
+    c_lat = patch / (K * K_lat_ratio)
+    eps2 = eps * eps
+
+    def janosi(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float
+               ) -> tuple[float, float, float]:
+        if normal <= 0.0:
+            return 0.0, 0.0, 0.0
+        s = hypot(s_lon, s_lat)
+        if s < 1e-12:
+            return 0.0, 0.0, k_max
+        v_ref = max(abs(u), hypot(v_lon, s_lat), eps)
+        z_lon = s_lon * c_lon / v_ref
+        z_lat = s_lat * c_lat / v_ref
+        z = hypot(z_lon, z_lat)
+        frac = 0.5 * z if z < 1e-6 else 1.0 - (1.0 - exp(-z)) / z  # janosi_fraction(z, 1)
+        a, b = (1.0 - frac) / z, frac / s
+        mag = mu * normal * frac
+        if mag > k_max * s:
+            mag = k_max * s
+        return -mag * (a * z_lon + b * s_lon), -mag * mu_lat_ratio * (a * z_lat + b * s_lat), mag / s
+
+    def coulomb(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float
+                ) -> tuple[float, float, float]:
+        if normal <= 0.0:
+            return 0.0, 0.0, 0.0
+        s = hypot(s_lon, s_lat)
+        if s < 1e-12:
+            return 0.0, 0.0, k_max
+        mag = mu * normal * s / math.sqrt(s * s + eps2)
+        if mag > k_max * s:
+            mag = k_max * s
+        return -mag * s_lon / s, -mag * mu_lat_ratio * s_lat / s, mag / s
+
+    return janosi if model_janosi else coulomb
