@@ -138,7 +138,7 @@ def row_verdict(reproduced: float | None, row: Mapping[str, Any]) -> str:
     if "tolerance_rel" in row:
         rel = abs(reproduced - pub) / max(abs(pub), 1e-12)
         ok = rel <= row["tolerance_rel"]
-        return f"{'matches' if ok else 'differs'} ({rel:.0%} {'≤' if ok else '>'} {row['tolerance_rel']:.0%})"
+        return f"{'matches' if ok else 'differs'} ({rel:.1%} {'≤' if ok else '>'} {row['tolerance_rel']:.1%})"
     return "—"
 
 
@@ -299,12 +299,17 @@ def _copy_figures(res: PaperResult, out_dir: Path) -> None:
                 tmp.write_bytes(data)
 
 
+def _cell(x: Any) -> str:
+    """Markdown table cell: pipes escaped, newlines folded."""
+    return str(x).replace("|", "\\|").replace("\n", " ")
+
+
 def _table_md(tab: Mapping[str, Any], notes: Mapping[str, str]) -> str:
     lines = [f"### {tab.get('title', tab['id'])}", "", f"Source: {tab.get('source', '')}", ""]
     if tab["rows_out"]:
         lines += ["| quantity | reproduced | published | verdict |", "|---|---|---|---|"]
         for r in tab["rows_out"]:
-            lines.append(f"| {r.get('label', r['metric'])} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))} | {r['verdict']} |")
+            lines.append(f"| {_cell(r.get('label', r['metric']))} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))} | {r['verdict']} |")
     else:
         lines += ["| metric | reproduced |", "|---|---|"]
         for k, v in tab["all_metrics"].items():
@@ -335,7 +340,7 @@ def _claims_md(res: PaperResult) -> str:
     lines = ["| claim | source | verdict | measured | why |", "|---|---|---|---|---|"]
     for c in res.claims:
         v = {True: "**holds**", False: "**does not hold**", None: "not evaluated"}[c["holds"]]
-        lines.append(f"| {c['text']} | {c.get('source', '')} | {v} | {c['measured']} | {c.get('why', '')} |")
+        lines.append(f"| {_cell(c['text'])} | {_cell(c.get('source', ''))} | {v} | {_cell(c['measured'])} | {_cell(c.get('why', ''))} |")
     return "\n".join(lines) + "\n"
 
 
