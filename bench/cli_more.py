@@ -47,10 +47,22 @@ def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
 
 
+def _remove_stale_temp_files(results_dir: Path) -> None:
+    """Temp files of an interrupted earlier run (``.<name>.<random>.tmp``: the atomic writes never
+    give them a final name) are deleted before a new run starts."""
+    from bench.runner import DEFAULT_CACHE
+
+    for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
+        if folder.is_dir():
+            for p in folder.rglob(".*.tmp"):
+                p.unlink(missing_ok=True)
+
+
 def _reproduce(a: argparse.Namespace) -> int:
     from bench import reproduce as R
 
     results_dir = a.results or R.RESULTS
+    _remove_stale_temp_files(results_dir)
     papers = [p for p in a.papers if p not in EXTRAS] or None
     extras = [p for p in a.papers if p in EXTRAS]
     if a.all or not a.papers:

@@ -1,0 +1,72 @@
+"""Runner: identical runs serial, with a local process pool and on a Dask cluster; an interrupted
+reproduce leaves no half-written file and the next run resumes from the cache."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from bench.runner import Runner
+from bench.spec import load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_dask_local_cluster_gives_the_serial_runs(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    scn = load_scenario("circle_vinyl", {"duration": 1.5})
+    reqs = [(scn, s) for s in range(3)]
+    serial = Runner(cache_dir=tmp_path / "serial").simulate_many(reqs)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        dask = Runner(cache_dir=tmp_path / "dask", dask_scheduler=cluster.scheduler_address).simulate_many(reqs)
+    assert [r.content_hash() for r in dask] == [r.content_hash() for r in serial]
+
+
+def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
+    """Start a reproduction, kill it mid-run, check results/ and the cache hold only whole files,
+    then run again: the runs finished before the kill come from the cache."""
+    results, cache = tmp_path / "results", tmp_path / "cache"
+    env = dict(os.environ, SKIDBENCH_CACHE=str(cache))
+    cmd = [sys.executable, "-m", "bench.cli", "reproduce", "league", "--quick", "--workers", "2", "--results", str(results)]
+    proc = subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(cache.glob("*.parquet"))) < 3:
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done_before = {p.name for p in cache.glob("*.parquet")}
+    assert done_before, "the reproduction did not get far enough to test an interruption"
+    # a write cut by SIGKILL can only leave a hidden temp file, never a file under its final name
+    leftovers = [p for d in (results, cache) if d.exists() for p in d.rglob("*")
+                 if p.is_file() and p.name.endswith(".tmp")]
+    assert all(p.name.startswith(".") for p in leftovers), leftovers
+    if results.exists():
+        assert not list(results.rglob("league_quick.md"))  # the table is written only when complete
+    from bench.run import Run
+
+    for p in cache.glob("*.parquet"):
+        Run.from_parquet(p)  # every cached run is whole
+    # the next reproduce removes such temp files before it starts
+    import bench.runner as runner_mod
+    from bench.cli_more import _remove_stale_temp_files
+
+    (cache / ".stale.parquet.abc123.tmp").write_bytes(b"half a parquet")
+    saved = runner_mod.DEFAULT_CACHE
+    runner_mod.DEFAULT_CACHE = cache
+    try:
+        _remove_stale_temp_files(results)
+    finally:
+        runner_mod.DEFAULT_CACHE = saved
+    assert not [p for d in (results, cache) if d.exists() for p in d.rglob(".*.tmp")]
+    # resume: the cached runs are not simulated again
+    from bench.league import calibration_set
+    scn = load_scenario("circle_vinyl", {"duration": 12.0})
+    r = Runner(cache_dir=cache)
+    r.simulate_many(calibration_set(scn, quick=True))
+    assert r.stats["cached"] >= len(done_before & {r.path_for(s, seed).name for s, seed in calibration_set(scn, True)})
