@@ -178,7 +178,7 @@ def _load_optional_commands() -> None:
     """Commands defined next to their feature (reproduce, gap, formats, ...) register themselves."""
     import importlib
 
-    for mod in ("bench.cli_more", "bench.cli_dashboard"):
+    for mod in ("bench.cli_more", "bench.cli_dashboard", "bench.cli_gap"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

@@ -265,3 +265,10 @@ def _extra_league(results_dir: Path, quick: bool) -> None:
     from bench.runner import Runner
 
     write_league(results_dir, quick, Runner(workers=os.cpu_count() or 1))
+
+
+@register_extra("gap")
+def _extra_gap(results_dir: Path, quick: bool) -> None:
+    from bench.gap import write_worked_example
+
+    write_worked_example(Path(results_dir) / "gap")

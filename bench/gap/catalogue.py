@@ -1,0 +1,283 @@
+"""The named catalogue of candidate missing effects.
+
+Each :class:`Effect` is a small augmentation of the nominal model: a physical meaning, one or
+two parameters with bounds and units, the spec field(s) they set (the same fields a user changes
+with ``skidbench simulate --set``), the channels it mainly affects and its signature (how it shows
+in the residuals; used by a reader, the selection relies on the fits).
+
+Kinds:
+
+* ``physics``: changes the testbed's physics; evaluating it needs a simulation.
+* ``sensor``: a deterministic sensor error; applied to the model's noise-free signals without
+  re-simulating (encoder scale error, gyro bias).
+* ``delay``: actuator delay; simulated (the testbed delays the PID reference), screened on a
+  time-shift surrogate of the nominal signals and fitted over the testbed's physics steps.
+
+``neutral(scn)`` gives the parameter values that reproduce the nominal model (the effect "off");
+``None`` for an effect that changes a model structure (shear-displacement friction on a Coulomb
+terrain), which is screened on a grid instead.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping
+
+from bench.spec import Scenario
+
+
+@dataclass(frozen=True)
+class Param:
+    """One effect parameter: name, unit, bounds, probe step (absolute, in the parameter's unit)."""
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    step: float
+    log: bool = False  # fitted in log10 (a scale parameter spanning decades)
+    mirror: bool = False  # part of the response is even in (value - neutral): refine from both signs
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """A model = nominal spec + physics overrides + sensor errors + time shift (surrogate)."""
+
+    overrides: tuple[tuple[str, Any], ...] = ()
+    enc_scale: tuple[float, float] = (0.0, 0.0)
+    gyro_bias: float = 0.0
+    shift: float = 0.0
+
+    def with_overrides(self, **kv: Any) -> "ModelConfig":
+        d = dict(self.overrides)
+        d.update(kv)
+        return ModelConfig(tuple(sorted(d.items())), self.enc_scale, self.gyro_bias, self.shift)
+
+    def replace(self, **kv: Any) -> "ModelConfig":
+        d = {"overrides": self.overrides, "enc_scale": self.enc_scale, "gyro_bias": self.gyro_bias,
+             "shift": self.shift}
+        d.update(kv)
+        return ModelConfig(**d)
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str
+    title: str
+    meaning: str
+    params: tuple[Param, ...]
+    channels: tuple[str, ...]
+    signature: str
+    kind: str  # physics | sensor | delay
+    _neutral: Callable[[Scenario], tuple[float, ...] | None] = field(repr=False, compare=False)
+    _apply: Callable[[Scenario, ModelConfig, tuple[float, ...]], ModelConfig] = field(repr=False, compare=False)
+    _spec: Callable[[Scenario, tuple[float, ...]], dict[str, Any]] = field(repr=False, compare=False)
+    probe_grid: tuple[tuple[float, ...], ...] = ()  # screening points when there is no neutral value
+
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    def __reduce__(self):  # pickled by name (process pools): the catalogue is code, not data
+        return (get, (self.name,))
+
+    def neutral(self, scn: Scenario) -> tuple[float, ...] | None:
+        return self._neutral(scn)
+
+    def apply(self, scn: Scenario, cfg: ModelConfig, values: tuple[float, ...]) -> ModelConfig:
+        """``cfg`` with this effect set to ``values``."""
+        return self._apply(scn, cfg, tuple(float(v) for v in values))
+
+    def spec_overrides(self, scn: Scenario, values: tuple[float, ...]) -> dict[str, Any]:
+        """The spec fields (``--set`` keys, SI dataclass fields) this effect sets."""
+        return self._spec(scn, tuple(float(v) for v in values))
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "title": self.title, "meaning": self.meaning, "kind": self.kind,
+                "channels": list(self.channels), "signature": self.signature,
+                "params": [{"name": p.name, "unit": p.unit, "lower": p.lower, "upper": p.upper} for p in self.params]}
+
+
+def _phys(spec_fn: Callable[[Scenario, tuple[float, ...]], dict[str, Any]]):
+    def apply(scn: Scenario, cfg: ModelConfig, v: tuple[float, ...]) -> ModelConfig:
+        return cfg.with_overrides(**spec_fn(scn, v))
+    return apply
+
+
+# ------------------------------------------------------------------------------------ effects
+def _roll_spec(scn, v):
+    return {"terrain.rolling_resistance": v[0]}
+
+
+def _mu_spec(scn, v):
+    return {"terrain.mu_sa": scn.terrain.mu_sa * v[0], "terrain.mu_op": scn.terrain.mu_op * v[0]}
+
+
+def _shear_spec(scn, v):
+    return {"terrain.model": "janosi", "terrain.shear_modulus": v[0]}
+
+
+def _radius_spec(scn, v):
+    return {"platform.wheel_radius_scale_l": v[0], "platform.wheel_radius_scale_r": v[1]}
+
+
+def _cg_spec(scn, v):
+    return {"platform.cg_offset_x": v[0], "platform.cg_offset_y": v[1]}
+
+
+def _payload_spec(scn, v):
+    return {"platform.payload": v[0]}
+
+
+def _slope_spec(scn, v):
+    return {"terrain.slope": math.radians(v[0])}
+
+
+def _sat_spec(scn, v):
+    return {"platform.motor.max_current": v[0]}
+
+
+def _delay_spec(scn, v):
+    return {"platform.actuator_delay": v[0]}
+
+
+def _enc_spec(scn, v):
+    return {"platform.sensors.encoder.scale_error_l": v[0], "platform.sensors.encoder.scale_error_r": v[1]}
+
+
+def _gyro_spec(scn, v):
+    return {"platform.sensors.imu.gyro_bias_z": v[0]}
+
+
+def _enc_apply(scn, cfg, v):
+    return cfg.replace(enc_scale=(v[0], v[1]))
+
+
+def _gyro_apply(scn, cfg, v):
+    return cfg.replace(gyro_bias=v[0])
+
+
+def _delay_apply(scn, cfg, v):
+    return cfg.with_overrides(**{"platform.actuator_delay": max(v[0], 0.0)})
+
+
+CATALOGUE: tuple[Effect, ...] = (
+    Effect(
+        "rolling_resistance", "rolling resistance",
+        "Rolling-resistance coefficient mu_roll of the terrain/tires: a resisting wheel torque "
+        "mu_roll N r on every rolling wheel (tire hysteresis, soft ground).",
+        (Param("rolling_resistance", "-", 0.0, 0.3, 0.02),),
+        ("tau_l", "tau_r", "i_l", "i_r"),
+        "constant extra torque on both sides whenever the wheels roll, about the same straight and "
+        "turning; no change in the kinematics", "physics",
+        lambda s: (s.terrain.rolling_resistance,), _phys(_roll_spec), _roll_spec),
+    Effect(
+        "friction", "terrain friction change (mu)",
+        "Friction of the terrain scaled by mu_scale (mu_sa and mu_op together): wet, dusty or a "
+        "different surface.",
+        (Param("mu_scale", "-", 0.2, 3.0, 0.15),),
+        ("tau_l", "tau_r", "imu_gz"),
+        "turning torques scale with mu (skid-steer turning resistance), straight-line torques "
+        "unchanged; yaw response in tight turns changes", "physics",
+        lambda s: (1.0,), _phys(_mu_spec), _mu_spec),
+    Effect(
+        "shear_displacement", "shear-displacement friction instead of Coulomb",
+        "Janosi-Hanamoto shear-displacement friction (Yu 2010 eq. (7)) with shear modulus K "
+        "instead of Coulomb friction (or a different K): the tangential force builds up with the "
+        "slip ratio over the contact patch.",
+        (Param("shear_modulus", "m", 2e-4, 0.05, 0.25, log=True),),
+        ("imu_gz", "tau_l", "tau_r", "ref_yaw"),
+        "turn rate and turning torque depend on the slip ratio: less yaw and less torque in "
+        "gentle turns than Coulomb, converging in tight ones", "physics",
+        lambda s: (s.terrain.shear_modulus,) if s.terrain.model == "janosi" else None,
+        _phys(_shear_spec), _shear_spec,
+        probe_grid=((5e-4,), (1.5e-3,), (4e-3,), (1e-2,))),
+    Effect(
+        "wheel_radius", "wheel-radius asymmetry (tire pressure)",
+        "Effective rolling radius of each side, r_eff = r * scale (tire pressure, wear, load).",
+        (Param("radius_scale_l", "-", 0.8, 1.2, 0.01), Param("radius_scale_r", "-", 0.8, 1.2, 0.01)),
+        ("ref_yaw", "ref_x", "ref_y", "imu_gz", "body_vx"),
+        "speed scaled on one side: a constant yaw-rate offset on straight lines (heading drift), "
+        "distance scaled; wheel speeds unchanged", "physics",
+        lambda s: (s.platform.wheel_radius_scale_l, s.platform.wheel_radius_scale_r),
+        _phys(_radius_spec), _radius_spec),
+    Effect(
+        "cg_offset", "centre-of-mass offset (ICR eccentricity)",
+        "Centre of mass ahead of (x) / left of (y) the geometric centre: shifts the normal loads "
+        "and the ICR longitudinally (x_icr), side loads (y).",
+        (Param("cg_offset_x", "m", -0.15, 0.15, 0.02, mirror=True), Param("cg_offset_y", "m", -0.15, 0.15, 0.02)),
+        ("body_vy", "imu_ay", "imu_gz", "tau_l", "tau_r"),
+        "lateral body velocity in turns (x_icr = -vy/wz), left/right torque split, yaw response; "
+        "the turning torque changes with |x| (both signs alike), so x is fitted from both signs",
+        "physics",
+        lambda s: (s.platform.cg_offset_x, s.platform.cg_offset_y), _phys(_cg_spec), _cg_spec),
+    Effect(
+        "payload", "extra payload mass",
+        "Extra mass carried at the centre of mass [kg]: more inertia, weight and friction load.",
+        (Param("payload", "kg", 0.0, 80.0, 4.0),),
+        ("tau_l", "tau_r", "i_l", "i_r"),
+        "torques larger in proportion everywhere, most when accelerating and braking (inertia) and "
+        "turning (load); kinematics nearly unchanged", "physics",
+        lambda s: (s.platform.payload,), _phys(_payload_spec), _payload_spec),
+    Effect(
+        "slope", "terrain slope",
+        "Ground inclined by slope_deg, rising along world +x (the testbed's ramp axis).",
+        (Param("slope_deg", "deg", -20.0, 20.0, 2.0),),
+        ("imu_ax", "imu_ay", "tau_l", "tau_r"),
+        "gravity in the accelerometer (g sin(slope) along the heading's uphill component), torque "
+        "offset that changes sign with heading, drift of the path downhill", "physics",
+        lambda s: (math.degrees(s.terrain.slope),), _phys(_slope_spec), _slope_spec),
+    Effect(
+        "motor_saturation", "motor torque/current saturation",
+        "Motor current (hence torque) limit per motor I_max [A] below the nominal one (controller "
+        "setting, thermal derating).",
+        (Param("max_current", "A", 0.1, 50.0, 0.1),),
+        ("i_l", "i_r", "tau_l", "tau_r", "enc_wl", "enc_wr"),
+        "measured current/torque flat at a ceiling while the model asks for more; wheel speeds lag "
+        "the command in hard acceleration and tight turns", "physics",
+        lambda s: (s.platform.motor.max_current,), _phys(_sat_spec), _sat_spec),
+    Effect(
+        "actuator_delay", "actuator delay",
+        "Delay between a command and the wheel-speed controller's reference [s] (communication, "
+        "controller cycle).",
+        (Param("delay", "s", 0.0, 0.5, 0.02),),
+        ("enc_wl", "enc_wr", "tau_l", "tau_r", "imu_ax"),
+        "every transient (acceleration, braking, turn entry) late by the same time; steady "
+        "states unchanged", "delay",
+        lambda s: (s.platform.actuator_delay,), _delay_apply, _delay_spec),
+    Effect(
+        "encoder_scale", "encoder scale error",
+        "Fractional scale error of each side's encoder (wrong counts per revolution, gearing).",
+        (Param("scale_error_l", "-", -0.3, 0.3, 0.01), Param("scale_error_r", "-", -0.3, 0.3, 0.01)),
+        ("enc_wl", "enc_wr"),
+        "encoder speed proportional to the model's (ratio 1 + e) while body motion, torques and "
+        "yaw agree", "sensor",
+        lambda s: (s.platform.sensors.encoder.scale_error_l, s.platform.sensors.encoder.scale_error_r),
+        _enc_apply, _enc_spec),
+    Effect(
+        "gyro_bias", "IMU gyro bias",
+        "Constant bias of the gyro's z rate [rad/s].",
+        (Param("gyro_bias_z", "rad/s", -0.5, 0.5, 0.005),),
+        ("imu_gz",),
+        "constant offset of the measured yaw rate, in every regime including standstill; pose "
+        "and wheels agree", "sensor",
+        lambda s: (s.platform.sensors.imu.gyro_bias_z,), _gyro_apply, _gyro_spec),
+)
+
+BY_NAME: Mapping[str, Effect] = {e.name: e for e in CATALOGUE}
+
+
+def get(name: str) -> Effect:
+    try:
+        return BY_NAME[name]
+    except KeyError:
+        raise KeyError(f"unknown gap effect {name!r}; catalogue: {sorted(BY_NAME)}") from None
+
+
+def nominal_config(scn: Scenario) -> ModelConfig:
+    """The nominal model: the scenario as specified (its own sensor errors applied)."""
+    enc = scn.platform.sensors.encoder
+    return ModelConfig((), (enc.scale_error_l, enc.scale_error_r), scn.platform.sensors.imu.gyro_bias_z, 0.0)
+
+
+__all__ = ["Param", "Effect", "ModelConfig", "CATALOGUE", "BY_NAME", "get", "nominal_config"]

@@ -1,0 +1,477 @@
+"""Fitting candidate effects to a measured run (scipy.optimize), with uncertainty and a
+linearised two-fold cross-validation.
+
+Cost: ``J(theta) = |z(theta)|^2`` with ``z`` the stacked weighted normalised residual of
+:class:`bench.gap.residuals.ResidualSpace`.
+
+1. **Screening** (cheap, one simulation per parameter): the residual's sensitivity to each
+   parameter at the effect's neutral value (forward difference with the parameter's probe step),
+   then a bounded *linear* least-squares step (``scipy.optimize.lsq_linear``) predicts the fitted
+   value and cost.  Effects without a neutral value (Coulomb -> shear displacement) are screened
+   on a grid of simulations; motor saturation is screened at the ceiling seen in the measured
+   currents; the actuator delay on a time-shift surrogate of the nominal signals (bounded scalar
+   minimisation, ``minimize_scalar``); sensor effects are fitted exactly (no simulation).
+2. **Refinement** of the most promising candidates: ``scipy.optimize.least_squares`` (trust region
+   reflective, bounds) on simulations, x0 = the screening estimate, in variables measured from x0
+   in probe steps (so the tolerances mean the same for every parameter), central-difference
+   Jacobian with steps of a tenth of the probe step (log10 space for scale parameters).
+3. **Uncertainty**: covariance ``(J_e^T J_e)^-1 max(1, chi2_red)`` from the Jacobian of the
+   unit-variance residuals ``e`` at the solution (``chi2_red = sum e^2 / (m - p)``); reported as a
+   standard error.  Residuals are autocorrelated in time, so this is optimistic; the two fold
+   estimates are reported beside it.
+4. **Cross-validation** (held-out score, no extra simulation): the time axis is cut into
+   alternating blocks (fold 0/1).  From the full fit (projected to its linearised optimum when the
+   optimiser stalled within one probe step of it), one Gauss-Newton step on the rows of one fold
+   gives that fold's parameters; its residual on the *other* fold is predicted linearly.  The
+   held-out cost ``J_cv`` is the sum of both folds' held-out costs (comparable to ``J``).
+
+Every model evaluation is cached by its configuration within a workflow.  Simulations of a batch
+(screening probes) and the refinements of several candidates run in a process pool when
+``workers > 1``; every task is a pure function of its inputs, so results do not depend on the
+number of workers.
+"""
+from __future__ import annotations
+
+import math
+import multiprocessing as mp
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+from scipy.optimize import least_squares, lsq_linear, minimize_scalar
+
+from bench.gap.catalogue import Effect, ModelConfig
+from bench.gap.model import Grid, sample_trace
+from bench.gap.residuals import ResidualSpace
+from bench.spec import Scenario
+
+REFINE_MAX_NFEV = 8
+XTOL = 1e-3  # least_squares tolerances: parameters to ~0.1% of a probe step
+FTOL = 1e-5
+FD_FRACTION = 0.1  # finite-difference step = this x probe step (central differences)
+
+
+# ------------------------------------------------------------------------------------------------
+# Model evaluation
+# ------------------------------------------------------------------------------------------------
+def _trace_task(args: tuple[Callable, Scenario, tuple]) -> dict[str, np.ndarray]:
+    fn, scn, overrides = args
+    return fn(scn, dict(overrides))
+
+
+class Evaluator:
+    """Cached model evaluations for one workflow: config -> model channels -> residual."""
+
+    def __init__(self, scn: Scenario, grid: Grid, space: ResidualSpace,
+                 trace_fn: Callable[[Scenario, Mapping[str, Any]], dict[str, np.ndarray]],
+                 workers: int = 1, pose_offset: tuple[float, float] | None = None):
+        self.scn, self.grid, self.space, self.trace_fn = scn, grid, space, trace_fn
+        self.workers = max(1, int(workers))
+        self.pose_offset = pose_offset
+        self._cache: dict[tuple, dict[str, np.ndarray]] = {}
+        self.n_sims = 0
+
+    # traces -------------------------------------------------------------------------------------
+    def trace(self, overrides: tuple) -> dict[str, np.ndarray]:
+        if overrides not in self._cache:
+            self._cache[overrides] = self.trace_fn(self.scn, dict(overrides))
+            self.n_sims += 1
+        return self._cache[overrides]
+
+    def prefetch(self, configs: Sequence[ModelConfig]) -> None:
+        """Simulate the configurations not cached yet (in parallel when workers > 1)."""
+        todo = []
+        for c in configs:
+            if c.overrides not in self._cache and c.overrides not in todo:
+                todo.append(c.overrides)
+        if not todo:
+            return
+        if self.workers > 1 and len(todo) > 1:
+            with _pool(min(self.workers, len(todo))) as ex:
+                results = list(ex.map(_trace_task, [(self.trace_fn, self.scn, o) for o in todo]))
+        else:
+            results = [self.trace_fn(self.scn, dict(o)) for o in todo]
+        for o, r in zip(todo, results):
+            self._cache[o] = r
+            self.n_sims += 1
+
+    def store(self, traces: Mapping[tuple, dict[str, np.ndarray]]) -> None:
+        for k, v in traces.items():
+            if k not in self._cache:
+                self._cache[k] = v
+
+    # signals ------------------------------------------------------------------------------------
+    def signals(self, cfg: ModelConfig) -> dict[str, np.ndarray]:
+        tr = self.trace(cfg.overrides)
+        return sample_trace(tr, self.grid, shift=cfg.shift, enc_scale=cfg.enc_scale, gyro_bias=cfg.gyro_bias,
+                            x_offset=self.pose_offset)
+
+    def z(self, cfg: ModelConfig) -> np.ndarray:
+        return self.space.zvec(self.signals(cfg))
+
+    def cost(self, cfg: ModelConfig) -> float:
+        z = self.z(cfg)
+        return float(z @ z)
+
+
+def _pool(n: int) -> ProcessPoolExecutor:
+    try:
+        ctx = mp.get_context("fork")
+    except ValueError:  # no fork on this platform: spawn (slower start, same results)
+        ctx = mp.get_context("spawn")
+    return ProcessPoolExecutor(max_workers=n, mp_context=ctx)
+
+
+# ------------------------------------------------------------------------------------------------
+# Parameterisation of a set of effects
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Layout:
+    """Free parameters of a model: (effect, its parameter index) in order, on a base config."""
+
+    effects: tuple[Effect, ...]
+    base: ModelConfig
+    fixed: tuple[tuple[Effect, tuple[float, ...]], ...] = ()  # effects held at given values
+
+    @property
+    def params(self):
+        return [(e, i, p) for e in self.effects for i, p in enumerate(e.params)]
+
+    @property
+    def n(self) -> int:
+        return sum(e.n_params for e in self.effects)
+
+    def to_u(self, theta: Sequence[float]) -> np.ndarray:
+        return np.array([math.log10(max(v, 1e-12)) if p.log else v for (_, _, p), v in zip(self.params, theta)])
+
+    def to_theta(self, u: Sequence[float]) -> np.ndarray:
+        return np.array([10.0 ** v if p.log else v for (_, _, p), v in zip(self.params, u)])
+
+    def bounds_u(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = [math.log10(p.lower) if p.log else p.lower for (_, _, p) in self.params]
+        hi = [math.log10(p.upper) if p.log else p.upper for (_, _, p) in self.params]
+        return np.array(lo), np.array(hi)
+
+    def steps_u(self) -> np.ndarray:
+        return np.array([p.step for (_, _, p) in self.params])
+
+    def split(self, theta: Sequence[float]) -> list[tuple[Effect, tuple[float, ...]]]:
+        out, k = [], 0
+        for e in self.effects:
+            out.append((e, tuple(float(v) for v in theta[k:k + e.n_params])))
+            k += e.n_params
+        return out
+
+    def config(self, scn: Scenario, theta: Sequence[float]) -> ModelConfig:
+        cfg = self.base
+        for e, v in self.fixed:
+            cfg = e.apply(scn, cfg, v)
+        for e, v in self.split(theta):
+            cfg = e.apply(scn, cfg, v)
+        return cfg
+
+
+@dataclass
+class FitResult:
+    """A fitted model: effects with values, uncertainty, in-sample and cross-validated cost."""
+
+    effects: tuple[str, ...]
+    values: dict[str, dict[str, float]]
+    stderr: dict[str, dict[str, float]]
+    fold_values: dict[str, dict[str, list[float]]]
+    cost: float
+    cost_cv: float
+    n_params: int
+    config: ModelConfig
+    nfev: int = 0
+    status: str = ""
+    theta: tuple[float, ...] = ()
+    trace_key: tuple = ()
+    traces: dict = field(default_factory=dict, repr=False)
+    n_sims: int = 0  # simulations run by this fit (in its worker)
+    jac: np.ndarray | None = field(default=None, repr=False)  # d z / d u at the solution (free params)
+
+    def brief(self) -> dict[str, Any]:
+        return {"effects": list(self.effects), "values": self.values, "stderr": self.stderr,
+                "cost": self.cost, "cost_cv": self.cost_cv, "n_params": self.n_params}
+
+
+# ------------------------------------------------------------------------------------------------
+# Screening
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Screen:
+    effect: str
+    theta: tuple[float, ...]  # estimate of the candidate's parameters
+    predicted_cost: float
+    evaluated: bool  # predicted_cost is an actual evaluation (not a linear prediction)
+    note: str = ""
+
+
+def _clip(theta: np.ndarray, layout: Layout) -> np.ndarray:
+    lo, hi = layout.bounds_u()
+    u = layout.to_u(theta)
+    span = hi - lo
+    u = np.clip(u, lo + 1e-6 * span, hi - 1e-6 * span)
+    return layout.to_theta(u)
+
+
+def screen_configs(ev: Evaluator, effect: Effect, base: ModelConfig, measured_i_max: float | None
+                   ) -> list[ModelConfig]:
+    """The simulations screening ``effect`` will need (for batching)."""
+    scn = ev.scn
+    lay = Layout((effect,), base)
+    if effect.kind == "physics":
+        neutral = effect.neutral(scn)
+        if neutral is None:
+            return [lay.config(scn, g) for g in effect.probe_grid]
+        if effect.name == "motor_saturation":
+            if measured_i_max is None:
+                return []
+            return [lay.config(scn, (measured_i_max,))]
+        out = []
+        for j, p in enumerate(effect.params):
+            th = np.array(neutral, float)
+            th[j] = th[j] * 10 ** p.step if p.log else th[j] + p.step
+            out.append(lay.config(scn, _clip(th, lay)))
+        return out
+    return []
+
+
+def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: np.ndarray,
+           nominal_signals: Mapping[str, np.ndarray], measured_i_max: float | None) -> Screen:
+    """Screening estimate of ``effect`` on top of the model ``base`` (residual ``z0``)."""
+    scn = ev.scn
+    lay = Layout((effect,), base)
+    neutral = effect.neutral(scn)
+    if effect.kind == "sensor":
+        res = refine(ev, lay, np.array(neutral, float), max_nfev=20)
+        return Screen(effect.name, res.theta, res.cost, True, "exact (sensor effect, no simulation)")
+    if effect.kind == "delay":
+        d0 = neutral[0]
+        p = effect.params[0]
+
+        def f(s: float) -> float:
+            return ev.cost(base.replace(shift=base.shift + s))
+
+        r = minimize_scalar(f, bounds=(0.0, p.upper - d0), method="bounded", options={"xatol": 1e-4})
+        return Screen(effect.name, (d0 + float(r.x),), float(r.fun), True, "time-shift surrogate")
+    if neutral is None:
+        best = None
+        for g in effect.probe_grid:
+            c = ev.cost(lay.config(scn, g))
+            if best is None or c < best[1]:
+                best = (g, c)
+        return Screen(effect.name, tuple(best[0]), best[1], True, "grid")
+    if effect.name == "motor_saturation":
+        if measured_i_max is None:
+            return Screen(effect.name, tuple(neutral), cost0, True, "no current ceiling below the model's")
+        th = (measured_i_max,)
+        return Screen(effect.name, th, ev.cost(lay.config(scn, th)), True, "measured current ceiling")
+    th0 = np.array(neutral, float)
+    u0 = lay.to_u(th0)
+    cols = []
+    steps = []
+    for j, p in enumerate(effect.params):
+        th = th0.copy()
+        th[j] = th[j] * 10 ** p.step if p.log else th[j] + p.step
+        th = _clip(th, lay)
+        du = lay.to_u(th)[j] - u0[j]
+        steps.append(du)
+        cols.append((ev.z(lay.config(scn, th)) - z0) / du)
+    S = np.column_stack(cols)
+    lo, hi = lay.bounds_u()
+    r = lsq_linear(S, -z0, bounds=(lo - u0, hi - u0))
+    u = u0 + r.x
+    pred = float(np.sum((z0 + S @ r.x) ** 2))
+    return Screen(effect.name, tuple(lay.to_theta(u)), pred, False, "linearised")
+
+
+def measured_current_ceiling(space: ResidualSpace, nominal: Mapping[str, np.ndarray], rel: float = 0.97
+                             ) -> float | None:
+    """Max |measured current| when the nominal model draws clearly more (a saturation hint)."""
+    meas = [np.max(np.abs(space.meas[c])) for c in ("i_l", "i_r") if c in space.meas]
+    model = [np.nanmax(np.abs(nominal[c])) for c in ("i_l", "i_r") if c in nominal]
+    if not meas or not model:
+        return None
+    m, n = max(meas), max(model)
+    return float(m) if m < rel * n else None
+
+
+# ------------------------------------------------------------------------------------------------
+# Refinement, uncertainty, cross-validation
+# ------------------------------------------------------------------------------------------------
+def refine(ev: Evaluator, layout: Layout, theta0: Sequence[float], max_nfev: int = REFINE_MAX_NFEV,
+           prior_jac: np.ndarray | None = None) -> FitResult:
+    """Nonlinear least squares of ``layout``'s parameters from ``theta0`` (simulations).
+
+    ``prior_jac``: Jacobian of the residual w.r.t. the parameters of ``layout.fixed`` (from the
+    fit that selected them); the cross-validation refits those per fold too, so models with and
+    without a further effect are compared on equal terms."""
+    scn = ev.scn
+    if len(layout.effects) == 1 and layout.effects[0].kind == "delay":
+        return refine_delay(ev, layout, float(theta0[0]), prior_jac)
+    lo, hi = layout.bounds_u()
+    u0 = layout.to_u(_clip(np.asarray(theta0, float), layout))
+    scale = layout.steps_u()  # optimise v = (u - u0) / probe step: O(1) variables, xtol meaningful
+    h = FD_FRACTION
+    nfev = [0]
+
+    def to_u(v: np.ndarray) -> np.ndarray:
+        return u0 + v * scale
+
+    def fun(v: np.ndarray) -> np.ndarray:
+        nfev[0] += 1
+        return ev.z(layout.config(scn, layout.to_theta(to_u(v))))
+
+    vlo, vhi = (lo - u0) / scale, (hi - u0) / scale
+
+    def jac(v: np.ndarray) -> np.ndarray:
+        # central differences (one-sided at a bound): the testbed's responses can have kinks
+        # (the drive torque near a friction/stiction threshold), where a one-sided difference
+        # points the Gauss-Newton step away from the minimum
+        pts = []
+        for j in range(v.size):
+            vp, vm = v.copy(), v.copy()
+            vp[j] = min(v[j] + h, vhi[j])
+            vm[j] = max(v[j] - h, vlo[j])
+            pts.append((vp, vm))
+        ev.prefetch([layout.config(scn, layout.to_theta(to_u(x))) for pair in pts for x in pair])
+        return np.column_stack([(fun(vp) - fun(vm)) / (vp[j] - vm[j]) for j, (vp, vm) in enumerate(pts)])
+
+    if layout.n == 0:
+        z = fun(np.zeros(0))
+        return _result(ev, layout, u0, z, np.zeros((z.size, 0)), nfev[0], "no parameters", prior_jac)
+    res = least_squares(fun, np.zeros(u0.size), jac=jac, bounds=(vlo, vhi), method="trf",
+                        max_nfev=max_nfev, xtol=XTOL, ftol=FTOL)
+    return _result(ev, layout, to_u(res.x), res.fun, res.jac / scale[None, :], nfev[0], res.message, prior_jac)
+
+
+def refine_delay(ev: Evaluator, layout: Layout, d0: float, prior_jac: np.ndarray | None = None) -> FitResult:
+    """Actuator delay.  The testbed applies a delay at whole physics steps: a delay strictly
+    between k and k+1 steps (any value) behaves as one model, and an exact k steps as another
+    (the command start and the segment switches round differently).  So the cost is a staircase:
+    simulate the classes around the screening estimate ``d0`` (k dt and (k + 1/2) dt for k near
+    d0/dt), keep the best.  The standard error combines the Jacobian of the time-shift
+    surrogate (for uncertainty and cross-validation) with the step quantisation dt/sqrt(12)."""
+    scn = ev.scn
+    dt = scn.dt
+    p = layout.effects[0].params[0]
+    k0 = int(math.floor(max(d0, 0.0) / dt + 1e-9))
+    cands = sorted({round(v, 12) for k in range(k0 - 1, k0 + 2) for v in (k * dt, (k + 0.5) * dt)
+                    if 0.0 <= v <= p.upper})
+    ev.prefetch([layout.config(scn, (d,)) for d in cands])
+    costs = np.array([ev.cost(layout.config(scn, (d,))) for d in cands])
+    # delays that give the same model tie exactly: report the middle of the tied ones
+    tied = [d for d, c in zip(cands, costs) if c <= costs.min() * (1 + 1e-12)]
+    d = tied[(len(tied) - 1) // 2] if len(tied) % 2 else 0.5 * (tied[len(tied) // 2 - 1] + tied[len(tied) // 2])
+    cfg = layout.config(scn, (d,))
+    z = ev.z(cfg)
+    hh = dt * 0.25
+    zp = ev.z(cfg.replace(shift=cfg.shift + hh))
+    zm = ev.z(cfg.replace(shift=cfg.shift - hh))
+    J = ((zp - zm) / (2 * hh))[:, None]
+    out = _result(ev, layout, np.array([d]), z, J, len(cands), "staircase search over physics steps", prior_jac)
+    name, pname = layout.effects[0].name, p.name
+    out.stderr[name][pname] = float(math.hypot(out.stderr[name][pname], dt / math.sqrt(12.0)))
+    return out
+
+
+def _result(ev: Evaluator, layout: Layout, u: np.ndarray, z: np.ndarray, J: np.ndarray, nfev: int,
+            status: str, prior_jac: np.ndarray | None = None) -> FitResult:
+    scn, space = ev.scn, ev.space
+    theta = layout.to_theta(u)
+    cfg = layout.config(scn, theta)
+    cost = float(z @ z)
+    p = layout.n
+    # uncertainty from the unit-variance residuals e = z * row_scale
+    rs = space.row_scale()
+    Je = J * rs[:, None] if p else J
+    e = z * rs
+    m = e.size
+    se_u = np.full(p, np.nan)
+    if p:
+        chi2 = float(e @ e) / max(m - p, 1)
+        try:
+            cov = np.linalg.pinv(Je.T @ Je) * max(1.0, chi2)
+            se_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        except np.linalg.LinAlgError:
+            pass
+    # linearised two-fold cross-validation, around the linearised optimum: where the optimiser
+    # stalled short of a stationary point (the testbed's cost has small jumps, e.g. a bistable
+    # drive/brake friction blend), the residual is first projected to the linear optimum (a step
+    # of at most one probe step per parameter), so the held-out score measures prediction, not
+    # the stall.
+    fold = space.row_fold()
+    lo, hi = layout.bounds_u()
+    zs = z
+    if p:
+        d_full = np.linalg.lstsq(J, -z, rcond=None)[0]
+        if np.all(np.abs(d_full) <= layout.steps_u()):
+            zs = z + J @ d_full
+    # the previously selected (fixed) effects are refitted per fold too
+    Jcv = J if prior_jac is None or prior_jac.size == 0 else np.hstack([prior_jac, J])
+    q = Jcv.shape[1]
+    cv = 0.0
+    fold_u = []
+    for k in (0, 1):
+        a, b = fold == k, fold != k
+        if q:
+            step = np.linalg.lstsq(Jcv[a], -zs[a], rcond=None)[0]
+            own = step[q - p:]
+            uk = np.clip(u + own, lo, hi)
+            step = np.concatenate([step[: q - p], uk - u])
+            fold_u.append(uk)
+            pred_b = zs[b] + Jcv[b] @ step
+        else:
+            pred_b = zs[b]
+        cv += float(pred_b @ pred_b)
+    values, stderr, folds = {}, {}, {}
+    k = 0
+    for e_, vals in layout.split(theta):
+        values[e_.name], stderr[e_.name], folds[e_.name] = {}, {}, {}
+        for i, prm in enumerate(e_.params):
+            v = float(vals[i])
+            values[e_.name][prm.name] = v
+            s = float(se_u[k])
+            stderr[e_.name][prm.name] = v * math.log(10) * s if prm.log else s
+            folds[e_.name][prm.name] = [float(10 ** fu[k] if prm.log else fu[k]) for fu in fold_u]
+            k += 1
+    names = tuple(e.name for e, _ in layout.fixed) + tuple(e.name for e in layout.effects)
+    for e_, vals in layout.fixed:
+        values[e_.name] = {prm.name: float(v) for prm, v in zip(e_.params, vals)}
+        stderr[e_.name] = {prm.name: float("nan") for prm in e_.params}
+    traces = {cfg.overrides: ev.trace(cfg.overrides)}
+    jac_all = Jcv if prior_jac is not None and prior_jac.size else J
+    return FitResult(names, values, stderr, folds, cost, cv, p, cfg, nfev, str(status), tuple(float(t) for t in theta),
+                     cfg.overrides, traces, jac=jac_all)
+
+
+def _refine_task(args) -> FitResult:
+    ev, layout, theta0, prior_jac = args
+    before = ev.n_sims
+    r = refine(ev, layout, theta0, prior_jac=prior_jac)
+    r.n_sims = ev.n_sims - before
+    return r
+
+
+def refine_many(ev: Evaluator, jobs: Sequence[tuple[Layout, Sequence[float], np.ndarray | None]]) -> list[FitResult]:
+    """Refine several candidate models (in parallel processes when ``ev.workers > 1``)."""
+    if ev.workers > 1 and len(jobs) > 1:
+        saved = ev.workers
+        ev.workers = 1  # no nested pools inside the workers
+        try:
+            with _pool(min(saved, len(jobs))) as ex:
+                out = list(ex.map(_refine_task, [(ev, lay, th, pj) for lay, th, pj in jobs]))
+        finally:
+            ev.workers = saved
+        for r in out:
+            ev.store(r.traces)
+            ev.n_sims += r.n_sims
+        return out
+    return [_refine_task((ev, lay, th, pj)) for lay, th, pj in jobs]
+
+
+__all__ = ["Evaluator", "Layout", "FitResult", "Screen", "screen", "screen_configs", "refine", "refine_many",
+           "measured_current_ceiling"]

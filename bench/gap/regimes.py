@@ -1,0 +1,109 @@
+"""Driving regimes of a measured run, from measured signals only (commands, encoders, IMU).
+
+One label per instant, first match wins:
+
+* ``climbing``: |pitch| > 2 deg, pitch from the accelerometer, ``g sin(pitch) = a_x,meas - dv/dt``
+  (low-passed over 0.5 s; v from the encoders)
+* ``standstill``: |v| < 0.02 m/s and |commanded yaw rate| < 0.05 rad/s
+* ``spin``: |v| < 0.02 m/s, turning on the spot
+* ``accelerating`` / ``braking``: |dv/dt| > 0.1 m/s^2, speeding up / slowing down
+* ``steady straight``: commanded curvature |kappa| < 0.05 1/m
+* ``turning gentle`` (|kappa| <= 1 1/m, radius >= 1 m), ``turning medium`` (1-3 1/m),
+  ``turning tight`` (> 3 1/m, radius < 0.33 m)
+
+Curvature from the commanded wheel speeds with the nominal geometry:
+``kappa = (2/B) (w_r - w_l)/(w_r + w_l)``.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from bench.run import Run
+from bench.spec import Platform
+
+REGIMES = ("climbing", "standstill", "spin", "accelerating", "braking", "steady straight",
+           "turning gentle", "turning medium", "turning tight")
+GRID_DT = 0.02
+SMOOTH_S = 0.5
+STILL_SPEED = 0.02
+ACCEL_THRESHOLD = 0.1
+PITCH_THRESHOLD_DEG = 2.0
+KAPPA_STRAIGHT = 0.05
+KAPPA_BANDS = (1.0, 3.0)
+G = 9.81
+
+
+def _smooth(v: np.ndarray, n: int) -> np.ndarray:
+    if n <= 1:
+        return v
+    k = np.ones(n) / n
+    pad = np.pad(v, (n // 2, n - 1 - n // 2), mode="edge")
+    return np.convolve(pad, k, mode="valid")
+
+
+def _interp_channel(run: Run, name: str, grid: np.ndarray) -> np.ndarray | None:
+    if name not in run.data.columns or not run.has(name):
+        return None
+    t, v = run.samples(name)
+    return np.interp(grid, t, v)
+
+
+def label_run(run: Run, platform: Platform) -> tuple[np.ndarray, np.ndarray]:
+    """(grid times, regime index per grid time) for ``run``."""
+    t_end = float(run.t[-1])
+    grid = np.arange(0.0, t_end + GRID_DT / 2, GRID_DT)
+    r, B = platform.wheel_radius, platform.track
+    cl = _interp_channel(run, "cmd_wl", grid)
+    cr = _interp_channel(run, "cmd_wr", grid)
+    if cl is None or cr is None:
+        cl = cr = np.zeros_like(grid)
+    el = _interp_channel(run, "enc_wl", grid)
+    er = _interp_channel(run, "enc_wr", grid)
+    n = max(1, int(round(SMOOTH_S / GRID_DT)))
+    if el is not None and er is not None:
+        v = _smooth(0.5 * r * (platform.wheel_radius_scale_l * el + platform.wheel_radius_scale_r * er), n)
+    else:
+        v = _smooth(0.5 * r * (cl + cr), n)
+    dv = np.gradient(v, grid) if grid.size > 1 else np.zeros_like(grid)
+    w_cmd = r * (cr - cl) / B
+    v_cmd = 0.5 * r * (cr + cl)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        kappa = np.where(np.abs(v_cmd) > 1e-6, w_cmd / v_cmd, np.inf)
+    ax = _interp_channel(run, "imu_ax", grid)
+    labels = np.full(grid.size, REGIMES.index("steady straight"))
+    ak = np.abs(kappa)
+    labels = np.where(ak > KAPPA_STRAIGHT, REGIMES.index("turning gentle"), labels)
+    labels = np.where(ak > KAPPA_BANDS[0], REGIMES.index("turning medium"), labels)
+    labels = np.where(ak > KAPPA_BANDS[1], REGIMES.index("turning tight"), labels)
+    moving_fast = np.abs(dv) > ACCEL_THRESHOLD
+    speeding = dv * np.sign(np.where(v == 0, 1.0, v)) > 0
+    labels = np.where(moving_fast & speeding, REGIMES.index("accelerating"), labels)
+    labels = np.where(moving_fast & ~speeding, REGIMES.index("braking"), labels)
+    still = np.abs(v) < STILL_SPEED
+    labels = np.where(still & (np.abs(w_cmd) >= 0.05), REGIMES.index("spin"), labels)
+    labels = np.where(still & (np.abs(w_cmd) < 0.05) & ~moving_fast, REGIMES.index("standstill"), labels)
+    if ax is not None:
+        g_sin = _smooth(ax, n) - dv
+        pitch = np.degrees(np.arcsin(np.clip(g_sin / G, -1.0, 1.0)))
+        labels = np.where(np.abs(pitch) > PITCH_THRESHOLD_DEG, REGIMES.index("climbing"), labels)
+    return grid, labels
+
+
+def regimes_for(platform: Platform) -> Callable[[Run], tuple[tuple[str, ...], Callable[[np.ndarray], np.ndarray]]]:
+    """A function run -> (regime names, labeller of sample times) for :func:`residuals.build_space`."""
+
+    def fn(run: Run):
+        grid, labels = label_run(run, platform)
+
+        def label(tt: np.ndarray) -> np.ndarray:
+            k = np.clip(np.rint(np.asarray(tt) / GRID_DT).astype(int), 0, grid.size - 1)
+            return labels[k]
+
+        return REGIMES, label
+
+    return fn
+
+
+__all__ = ["REGIMES", "label_run", "regimes_for"]
