@@ -108,6 +108,27 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     return decl
 
 
+def published_values(paper: str, table_id: str) -> dict[str, float]:
+    """Published numbers of a declared table (metric -> value), for compute functions that need them."""
+    for tab in load_paper(paper)["tables"]:
+        if tab["id"] == table_id:
+            return {r["metric"]: float(r["published"]) for r in tab.get("rows", []) if "published" in r}
+    raise KeyError(f"{paper}.toml declares no table '{table_id}'")
+
+
+def mean_ci(values: Any, confidence: float = 0.95) -> tuple[float, float, float]:
+    """Mean and two-sided Student-t confidence interval of the mean (NaN bounds for < 2 values)."""
+    import numpy as np
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    m = float(np.mean(x))
+    if x.size < 2:
+        return m, math.nan, math.nan
+    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size))
+    return m, m - half, m + half
+
+
 def list_papers() -> list[str]:
     return sorted(p.stem for p in PAPERS_DIR.glob("*.toml"))
 

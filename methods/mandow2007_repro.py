@@ -52,6 +52,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from bench.reproduce import published_values as _published_values
 from bench import registry
 from bench.metrics import SegmentErrors, Trajectory, position_rms, segment_errors, velocity_reckoner
 from bench.registry import Estimate
@@ -104,12 +105,7 @@ def published_parameters(terrain: str, tire: str) -> dict[str, float]:
 
 def published_values(table_id: str) -> dict[str, float]:
     """Published numbers of a table as declared in ``scenarios/papers/mandow2007.toml`` (metric -> value)."""
-    from bench.reproduce import load_paper
-
-    for tab in load_paper("mandow2007")["tables"]:
-        if tab["id"] == table_id:
-            return {r["metric"]: float(r["published"]) for r in tab.get("rows", []) if "published" in r}
-    raise KeyError(f"mandow2007.toml declares no table '{table_id}'")
+    return _published_values("mandow2007", table_id)
 
 
 def _scenario(kind: str, terrain: str, tire: str, duration: float | None = None) -> Scenario:

@@ -51,6 +51,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from bench.reproduce import published_values as _published_values
 from bench import registry
 from bench.metrics import Trajectory, interpolate
 from bench.registry import Estimate
@@ -96,12 +97,7 @@ SETTINGS = Settings()
 
 def published_values(table_id: str) -> dict[str, float]:
     """Published numbers of a table as declared in ``scenarios/papers/wang2015.toml`` (metric -> value)."""
-    from bench.reproduce import load_paper
-
-    for tab in load_paper("wang2015")["tables"]:
-        if tab["id"] == table_id:
-            return {r["metric"]: float(r["published"]) for r in tab.get("rows", []) if "published" in r}
-    raise KeyError(f"wang2015.toml declares no table '{table_id}'")
+    return _published_values("wang2015", table_id)
 
 
 def grid_duration(curvature_ratio: float, speed: float, rotation: float, track: float, s: Settings = SETTINGS) -> float:

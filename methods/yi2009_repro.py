@@ -73,12 +73,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
-from scipy import stats
 from scipy.signal import savgol_filter
 
+from bench.reproduce import mean_ci  # noqa: F401 (re-exported)
+from bench.reproduce import published_values as _published_values
 from bench import registry
 from bench.metrics import Trajectory, final_position_error, position_errors, position_rms
 from bench.registry import Estimate
@@ -146,22 +147,7 @@ SETTINGS = Settings()
 
 def published_values(table_id: str) -> dict[str, float]:
     """Published numbers of a table as declared in ``scenarios/papers/yi2009.toml`` (metric -> value)."""
-    from bench.reproduce import load_paper
-
-    for tab in load_paper("yi2009")["tables"]:
-        if tab["id"] == table_id:
-            return {r["metric"]: float(r["published"]) for r in tab.get("rows", []) if "published" in r}
-    raise KeyError(f"yi2009.toml declares no table '{table_id}'")
-
-
-def mean_ci(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:
-    """Mean and two-sided Student-t confidence interval of the mean (NaN bounds for < 2 values)."""
-    x = np.asarray(values, dtype=float)
-    m = float(np.mean(x))
-    if x.size < 2:
-        return m, math.nan, math.nan
-    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size))
-    return m, m - half, m + half
+    return _published_values("yi2009", table_id)
 
 
 # ----------------------------------------------------------------------------------- slip reference
