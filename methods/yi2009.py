@@ -596,7 +596,8 @@ class Yi2009Ekf:
     ``estimate`` returns, at each IMU sample: x, y, yaw (state P_I, psi), vx, vy (C^T V_I), wz (Euler
     yaw rate (10e)), slip_l, slip_r (eq. (6) from the posterior), x_icr (S of (41) used in (15),
     variant 3 only) and the extra columns z, vz, roll, pitch (Fig. 8).  Geometry (wheel_radius,
-    track = W) from ``run.meta["platform"]``."""
+    track = W) from ``run.meta["platform"]``.  With ``store_covariance=True`` the posterior covariance
+    of (26f) at every step is ``info["P"]`` (n, 9, 9) (used by the stress tests, bench/stress.py)."""
 
     variant: int = 3
     s_gamma: SGamma = PUBLISHED_S_GAMMA
@@ -604,6 +605,7 @@ class Yi2009Ekf:
     initial_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the paper starts at the origin
     calibration: SGammaFit | None = None
     calibration_points: tuple[tuple[str, float, float], ...] = ()  # (run id, gamma, S [m])
+    store_covariance: bool = False  # info["P"]: (n, 9, 9) posterior covariance per step (stress tests)
 
     paper: ClassVar[str] = PAPER
     requires: ClassVar[frozenset[str]] = frozenset(ENC_CHANNELS + IMU_CHANNELS)
@@ -646,7 +648,7 @@ class Yi2009Ekf:
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = initial_state(acc, enc, r, self.params, self.initial_pose)
         res = run_filter(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant, s_gamma=self.s_gamma,
-                         params=self.params, x0=x0, p0=p0, where=run.where)
+                         params=self.params, x0=x0, p0=p0, store_cov=self.store_covariance, where=run.where)
         st = res.state
         cols: dict[str, np.ndarray] = dict(
             t=res.t, x=st[:, 0], y=st[:, 1], yaw=st[:, 8], vx=res.v_body[:, 0], vy=res.v_body[:, 1],
@@ -663,6 +665,8 @@ class Yi2009Ekf:
         )
         if self.calibration is not None:
             info["calibration"] = dict(points=list(self.calibration_points), residual_rms=self.calibration.residual_rms)
+        if res.cov is not None:
+            info["P"] = res.cov  # state order (P_I, V_I, phi, theta, psi), as FilterResult.state
         return make_estimate(self.name, info, **cols)
 
 

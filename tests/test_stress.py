@@ -1,0 +1,571 @@
+"""Filters under stress (bench/faults.py, bench/stress.py).
+
+Issue: 1-hour runs, a 30 s GNSS outage, IMU saturation spikes and encoder dropouts: no NaN, the
+covariance stays positive definite, and the estimate recovers after the fault (position error back
+within 2x its pre-fault level within 10 s of the fault's end; bench/faults.py gives the exact
+definition).
+
+* Fault functions and measures: synthetic Runs with closed-form expectations.
+* Liu 2020 UKF+ICR and MI-UKF on DUBHE (scenarios/stress_dubhe_random.toml, seed 1, 180 s, faults at
+  t0 = 90 s, after the GNSS initial drift has decayed): every fault, as the paper defines the filter
+  and, for the GNSS outage, with the ICR hold of Liu Sec. IV-A (LiuUkfParams.icr_hold_gnss_timeout).
+* Yi 2009 EKF schemes 1-3 on Yi's robot (scenarios/stress_yi_random.toml): IMU spikes and encoder
+  dropouts (Yi reads no GNSS).  Yi has no absolute position sensor: its position error grows, so
+  position recovery is not defined for it and not asserted.
+* The default run uses 180 s simulated runs; the 1-hour runs are behind ``@pytest.mark.slow``.
+
+A case that genuinely fails a criterion keeps its assertion and is marked
+``xfail(strict=True, reason=<measured numbers>)``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from bench import faults as F
+from bench import registry
+from bench import stress as S
+from bench.run import Run, RunError, from_arrays
+
+SEED = 1
+T0 = 90.0
+OUTAGE = (T0, T0 + 30.0)
+DROPOUT = (T0, T0 + 10.0)
+SPIKES = (T0, T0 + 1.3, T0 + 2.7)
+LIU = ("liu2020.ukf_icr", "liu2020.mi_ukf")
+YI = ("yi2009.ekf_v1", "yi2009.ekf_v2", "yi2009.ekf_v3")
+HOLD_TIMEOUT = 1.0
+RECOVER_WITHIN = 10.0
+
+
+# ============================================================================================
+# Fault functions on a synthetic run
+# ============================================================================================
+def _synthetic(duration: float = 20.0, seed: int = 0) -> Run:
+    """100 Hz log: IMU every row, encoders at 50 Hz, GNSS at 10 Hz (NaN between), truth columns."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(duration * 100) + 1) / 100.0
+    n = t.size
+    cols = {"t": t}
+    for c in F.IMU_CHANNELS:  # within the saturation below (20 m/s^2, 3 rad/s), as a real IMU's
+        cols[c] = rng.normal(0.0, 0.5, n) + (9.81 if c == "imu_az" else 0.0)
+    enc_rows = np.arange(n) % 2 == 0
+    for c in F.ENCODER_CHANNELS:
+        cols[c] = np.where(enc_rows, rng.normal(5.0, 0.1, n), np.nan)
+    gnss_rows = np.arange(n) % 10 == 0
+    for c in F.GNSS_CHANNELS:
+        cols[c] = np.where(gnss_rows, rng.normal(0.0, 1.0, n), np.nan)
+    cols["truth_x"], cols["truth_y"] = 0.5 * t, np.zeros(n)
+    meta = {"run_id": "synthetic", "platform": {"sensors": {"imu": {"saturation_accel": 20.0, "saturation_gyro": 3.0}}}}
+    return from_arrays(cols, meta)
+
+
+def _unchanged_except(a: Run, b: Run, changed: tuple[str, ...]) -> None:
+    assert list(a.data.columns) == list(b.data.columns)
+    for c in a.data.columns:
+        if c not in changed:
+            assert np.array_equal(a[c], b[c], equal_nan=True), c
+
+
+def test_gnss_outage_blanks_exactly_the_window():
+    run = _synthetic()
+    before = run.data.copy()
+    out = F.gnss_outage(run, 5.0, 8.0)
+    t = run.t
+    win = (t >= 5.0) & (t < 8.0)
+    for c in F.GNSS_CHANNELS:
+        assert not np.isfinite(out[c][win]).any(), c
+        assert np.array_equal(out[c][~win], run[c][~win], equal_nan=True), c
+    _unchanged_except(run, out, F.GNSS_CHANNELS)  # truth, IMU, encoders untouched
+    assert run.data.equals(before)  # the input run is not modified
+    rec = out.meta["faults"][-1]
+    assert rec["kind"] == "gnss_outage" and rec["samples_removed"] == 5 * 30  # 10 Hz x 3 s x 5 channels
+    assert out.content_hash() != run.content_hash() and out.id.startswith("synthetic+gnss_outage")
+
+
+def test_encoder_dropout_one_side_and_stacking():
+    run = _synthetic()
+    out = F.encoder_dropouts(run, 2.0, 3.0, channels=("enc_wl",))
+    win = (run.t >= 2.0) & (run.t < 3.0)
+    assert not np.isfinite(out["enc_wl"][win]).any()
+    assert np.array_equal(out["enc_wr"], run["enc_wr"], equal_nan=True)
+    _unchanged_except(run, out, ("enc_wl",))
+    both = F.gnss_outage(out, 10.0, 12.0)
+    assert [f["kind"] for f in both.meta["faults"]] == ["encoder_dropout", "gnss_outage"]
+    assert out.meta["faults"][0]["samples_removed"] == 50  # 50 Hz x 1 s
+
+
+def test_imu_spikes_clipped_at_saturation_and_located():
+    run = _synthetic()
+    times = [3.0, 7.004, 12.5]
+    out = F.imu_saturation_spikes(run, times, magnitude=1.0, seed=3, width=0.02)
+    sat = {"a": 20.0, "g": 3.0}
+    t = run.t
+    expected_rows = np.zeros(t.size, bool)
+    for tau in times:
+        rows = (t >= tau) & (t <= tau + 0.02)
+        expected_rows |= rows
+    assert expected_rows.sum() == 2 + 3 + 3  # 7.004 s: rows 7.01, 7.02 (+7.00 excluded); 3.00-3.02; 12.50-12.52
+    for c in F.IMU_CHANNELS:
+        s = sat[c[4]]
+        d = out[c] - run[c]
+        assert np.all(np.abs(out[c]) <= s + 1e-12), c
+        assert np.array_equal(np.flatnonzero(d != 0), np.flatnonzero(expected_rows)), c
+        # each spike adds +-s, then clips: |change| <= s and the sample moves toward the rail
+        assert np.all(np.abs(d[expected_rows]) <= s + 1e-12)
+        k = expected_rows
+        assert np.allclose(out[c][k], np.clip(run[c][k] + np.sign(d[k]) * s, -s, s)), c
+    _unchanged_except(run, out, F.IMU_CHANNELS)
+    # magnitude 2 full scales: every spiked sample lands exactly on a rail
+    rail = F.imu_saturation_spikes(run, times, magnitude=2.0, seed=3, width=0.02)
+    for c in F.IMU_CHANNELS:
+        assert np.all(np.abs(rail[c][expected_rows]) == sat[c[4]]), c
+
+
+def test_imu_spikes_deterministic_and_seeded():
+    run = _synthetic()
+    a = F.imu_saturation_spikes(run, [4.0, 9.0], 1.0, seed=11)
+    b = F.imu_saturation_spikes(run, [4.0, 9.0], 1.0, seed=11)
+    c = F.imu_saturation_spikes(run, [4.0, 9.0], 1.0, seed=12)
+    assert a.content_hash() == b.content_hash()
+    signs = lambda r: np.concatenate([np.sign(r[ch] - run[ch])[[400, 900]] for ch in F.IMU_CHANNELS])  # noqa: E731
+    assert not np.array_equal(signs(a), signs(c))
+
+
+def test_fault_bad_input_names_the_problem():
+    run = _synthetic()
+    with pytest.raises(ValueError, match="t1 > t0"):
+        F.gnss_outage(run, 5.0, 5.0)
+    with pytest.raises(RunError, match="enc_wx"):
+        F.encoder_dropouts(run, 1.0, 2.0, channels=("enc_wx",))
+    with pytest.raises(ValueError, match="after the last"):
+        F.imu_saturation_spikes(run, [25.0], 1.0)
+    with pytest.raises(ValueError, match="magnitude"):
+        F.imu_saturation_spikes(run, [2.0], 0.0)
+    no_sat = Run(run.data, {"run_id": "nosat", "platform": {}})
+    with pytest.raises(RunError, match="saturation_accel"):
+        F.imu_saturation_spikes(no_sat, [2.0], 1.0)
+
+
+# ============================================================================================
+# Measures: closed forms
+# ============================================================================================
+def test_recovery_closed_form_step():
+    """Error 1 before the fault, 10 from t0 until t1 + 5 s, then 1: the 1 s trailing mean is
+    10 - 9 d at d s after the drop, <= 2 x 1 from d = 8/9 s: recovery = 5 + 8/9 s."""
+    dt = 0.001
+    t = np.arange(0.0, 100.0 + dt / 2, dt)
+    t0, t1 = 40.0, 50.0
+    err = np.where((t >= t0) & (t < t1 + 5.0), 10.0, 1.0)
+    rec = F.recovery(t, err, t0, t1)
+    assert rec.pre == pytest.approx(1.0)
+    assert rec.recovery_time == pytest.approx(5.0 + 8.0 / 9.0, abs=2 * dt)
+    assert rec.max_total == 10.0 and rec.max_after == 10.0 and rec.max_fault == 10.0
+    assert not rec.recovered_within(5.0) and rec.recovered_within(6.0)
+    # an error that never comes back
+    rec2 = F.recovery(t, np.where(t >= t0, 10.0, 1.0), t0, t1)
+    assert math.isinf(rec2.recovery_time) and not rec2.recovered_within(1e9)
+    # a NaN is never "recovered": NaN on (t1 + 20, t1 + 21) keeps every 1 s window that holds it
+    # above the bound, the last one ending just before t1 + 22
+    bad = err.copy()
+    bad[(t > t1 + 20) & (t < t1 + 21)] = np.nan
+    rec3 = F.recovery(t, bad, t0, t1, horizon=25.0)
+    assert rec3.recovery_time == pytest.approx(22.0, abs=2 * dt) and math.isinf(rec3.max_after)
+
+
+def test_recovery_pre_level_is_percentile_of_smoothed_error():
+    t = np.arange(0.0, 80.0, 0.01)
+    err = 1.0 + 0.5 * np.sin(2 * np.pi * t / 4.0)  # period 4 s
+    rec = F.recovery(t, err, 30.0, 35.0)
+    # the 1 s trailing mean of a sine of period 4 s is a sine of amplitude 0.5 sin(pi/4)/(pi/4); a
+    # sinusoid A sin(phi) exceeds v for the fraction (pi - 2 asin(v/A)) / (2 pi) of the time, so its
+    # 95th percentile is A sin(0.45 pi)
+    amp = 0.5 * math.sin(math.pi / 4) / (math.pi / 4)
+    assert rec.pre == pytest.approx(1.0 + amp * math.sin(0.45 * math.pi), abs=2e-3)
+    mean_level = F.recovery(t, err, 30.0, 35.0, pre_percentile=None).pre
+    assert mean_level == pytest.approx(1.0, abs=5e-3)
+
+
+def test_covariance_health():
+    rng = np.random.default_rng(0)
+    A = rng.normal(size=(50, 4, 4))
+    P = A @ np.swapaxes(A, 1, 2) + 0.1 * np.eye(4)
+    h = F.covariance_health(P, chunk=7)
+    assert h.positive_definite and h.finite and h.max_asymmetry == 0.0
+    assert h.min_eig == pytest.approx(np.linalg.eigvalsh(P)[:, 0].min())
+    Q = P.copy()
+    Q[33] = np.diag([1.0, 1.0, -1e-9, 1.0])
+    h = F.covariance_health(Q, chunk=7)
+    assert not h.positive_definite and h.min_eig_step == 33 and h.min_eig == pytest.approx(-1e-9)
+    Q = P.copy()
+    Q[12, 0, 1] += 1e-3
+    assert not F.covariance_health(Q).positive_definite
+    Q = P.copy()
+    Q[40, 2, 2] = np.nan
+    h = F.covariance_health(Q)
+    assert not h.positive_definite and not h.finite and h.min_eig_step == 40
+
+
+# ============================================================================================
+# Liu 2020 on DUBHE
+# ============================================================================================
+@pytest.fixture(scope="module")
+def dubhe(sim) -> Run:
+    return sim("stress_dubhe_random", SEED)
+
+
+@pytest.fixture(scope="module")
+def liu_cases(dubhe):
+    """Faulted runs: case -> (run, fault start, fault end)."""
+    return {
+        "none": (dubhe, *OUTAGE),
+        "gnss_outage": (F.gnss_outage(dubhe, *OUTAGE), *OUTAGE),
+        "imu_spikes": (F.imu_saturation_spikes(dubhe, SPIKES, 1.0, seed=0), T0, max(SPIKES)),
+        "encoder_dropout": (F.encoder_dropouts(dubhe, *DROPOUT), *DROPOUT),
+    }
+
+
+@pytest.fixture(scope="module")
+def liu_est(liu_cases):
+    cache: dict = {}
+
+    def get(name: str, case: str, hold: bool = False):
+        key = (name, case, hold)
+        if key not in cache:
+            m = registry.get(name)
+            if hold:
+                m = dataclasses.replace(m, params=dataclasses.replace(m.params, icr_hold_gnss_timeout=HOLD_TIMEOUT))
+            cache[key] = registry.estimate(m, liu_cases[case][0])
+        return cache[key]
+    return get
+
+
+LIU_CASES = [(n, c, h) for n in LIU for c, h in
+             (("gnss_outage", False), ("gnss_outage", True), ("imu_spikes", False), ("encoder_dropout", False))]
+
+
+def _case_id(p) -> str:
+    n, c, h = p
+    return f"{n.split('.')[1]}-{c}{'-icr_hold' if h else ''}"
+
+
+@pytest.mark.parametrize("case", LIU_CASES, ids=_case_id)
+def test_liu_no_nan_and_covariance_pd(case, liu_est, liu_cases):
+    """No NaN in the estimate; P symmetric positive definite at every step; and bounded: at every
+    step with a GNSS fix (after the first) the posterior position std is below the GNSS std r_gnss
+    (the fix alone is an estimate with that error; Liu's h is linear, so the UKF update is the
+    Kalman update)."""
+    name, fault, hold = case
+    est = liu_est(name, fault, hold)
+    run = liu_cases[fault][0]
+    for c in ("x", "y", "yaw", "vx", "vy", "wz", "y_l", "y_r", "x_icr"):
+        assert np.isfinite(est[c]).all(), c
+    P = est.info["P"]
+    assert P.shape == (run.t.size, 6, 6)
+    h = F.covariance_health(P)
+    assert h.positive_definite, h
+    assert np.array_equal(P, np.swapaxes(P, 1, 2))
+    fix = np.isfinite(run["gnss_x"]) & np.isfinite(run["gnss_y"])
+    fix[0] = False  # step 0 is the prior P0 (p0_pos = r_gnss), not an update
+    r_pos = registry.get(name).params.r_gnss[0]
+    assert np.sqrt(np.maximum(P[fix, 0, 0], P[fix, 1, 1])).max() < r_pos
+
+
+# Measured on seed 1 (pre-fault level = 95th percentile of the 1 s mean error over 70-90 s):
+XFAIL_RECOVERY = {
+    ("liu2020.ukf_icr", "gnss_outage", False):
+        "UKF+ICR as in the paper (ICR recomputed from unconstrained velocities during the outage, it wanders "
+        "to the [-20, 20] clamp): max error 40.5 m, pre-fault 0.038 m, not back "
+        "within 2x in the 30 s horizon; with the Sec. IV-A ICR hold: max 0.35 m, recovered after 4.9 s",
+    ("liu2020.mi_ukf", "gnss_outage", False):
+        "MI-UKF as in the paper (ICR wanders during the outage): max error 182 m, pre-fault 0.029 m, not back "
+        "within 2x in the 30 s horizon; with the Sec. IV-A ICR hold: max 0.35 m, recovered after 4.0 s",
+    ("liu2020.ukf_icr", "imu_spikes", False):
+        "UKF+ICR after three full-scale IMU spikes: max error 0.19 m (pre-fault 0.038 m), back within 2x "
+        "after 10.43 s > 10 s: the gyro spike leaves a heading error that GNSS yaw (Appendix R: 0.3 rad) "
+        "corrects slowly; MI-UKF recovers in 2.2 s",
+}
+
+
+def _recovery_params():
+    out = []
+    for case in LIU_CASES:
+        reason = XFAIL_RECOVERY.get(case)
+        marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+        out.append(pytest.param(case, marks=marks, id=_case_id(case)))
+    return out
+
+
+@pytest.mark.parametrize("case", _recovery_params())
+def test_liu_recovers_after_fault(case, liu_est, liu_cases, dubhe):
+    """Position error back within 2x its pre-fault level within 10 s of the fault's end."""
+    name, fault, hold = case
+    est = liu_est(name, fault, hold)
+    _, t0, t1 = liu_cases[fault]
+    t, err = F.position_error(dubhe, est)
+    rec = F.recovery(t, err, t0, t1)
+    print(f"{name} {fault} hold={hold}: pre {rec.pre:.3f} m, max {rec.max_total:.3f} m, recovery {rec.recovery_time:.2f} s")
+    assert rec.recovery_time <= RECOVER_WITHIN, rec
+
+
+@pytest.mark.parametrize("name", LIU)
+def test_recovery_criterion_quiet_on_fault_free_run(name, liu_est, liu_cases, dubhe):
+    """Validity of the criterion: the fault-free run, scored on the same windows, 'recovers' at
+    once (its error is not a fault's; a criterion that flags it measures noise, not recovery)."""
+    est = liu_est(name, "none")
+    t, err = F.position_error(dubhe, est)
+    for fault in ("gnss_outage", "imu_spikes", "encoder_dropout"):
+        _, t0, t1 = liu_cases[fault]
+        rec = F.recovery(t, err, t0, t1)
+        assert rec.recovery_time <= RECOVER_WITHIN, (fault, rec)
+
+
+@pytest.mark.parametrize("name", LIU)
+def test_liu_icr_through_outage(name, liu_est, liu_cases, dubhe):
+    """Paper: the ICR, recomputed from unconstrained velocities during the outage, wanders (to the
+    [-20, 20] clamp).  Hold: constant from 1 s after the last fix until GNSS returns, equal to the
+    least-squares solution of eqs. (2), (3), (5) over the previous 20 s (second implementation:
+    numpy lstsq on the estimate's own columns)."""
+    run = liu_cases["gnss_outage"][0]
+    t = run.t
+    paper, held = liu_est(name, "gnss_outage"), liu_est(name, "gnss_outage", True)
+    fix_t = t[np.isfinite(run["gnss_x"]) & np.isfinite(run["gnss_y"])]
+    last = fix_t[np.maximum(np.searchsorted(fix_t, t, side="right") - 1, 0)]
+    hold_rows = t - last > HOLD_TIMEOUT
+    assert held.info["icr_held_steps"] == int(hold_rows.sum())
+    # last fix at t0 - 0.1 s (10 Hz): held from t0 - 0.1 + timeout to the end of the outage (+-1 row at the boundary)
+    assert abs(held.info["icr_held_steps"] - int(np.sum((t > OUTAGE[0] - 0.1 + HOLD_TIMEOUT) & (t < OUTAGE[1])))) <= 1
+    k = int(np.flatnonzero(hold_rows)[0])
+    icr = np.column_stack((held["y_l"], held["y_r"], held["x_icr"]))
+    assert np.all(icr[hold_rows] == icr[k])
+    r = dubhe.meta["platform"]["wheel_radius"]
+    w = (t >= t[k] - 20.0) & (np.arange(t.size) < k) & ~hold_rows & (np.abs(held["wz"]) >= 1e-3)
+    wz = held["wz"][w][:, None]
+    expect = [np.linalg.lstsq(wz, rhs, rcond=None)[0][0] for rhs in
+              (held["vx"][w] - r * held["wl"][w], held["vx"][w] - r * held["wr"][w], -held["vy"][w])]
+    np.testing.assert_allclose(icr[k], np.clip(expect, -20, 20), rtol=1e-9, atol=1e-12)
+    out = (t >= OUTAGE[0]) & (t < OUTAGE[1])
+    spread = np.ptp(paper["y_l"][out]) + np.ptp(paper["y_r"][out]) + np.ptp(paper["x_icr"][out])
+    assert spread > 10.0
+    assert max(np.abs(paper[c][out]).max() for c in ("y_l", "y_r", "x_icr")) == 20.0  # at the clamp
+    before = t < OUTAGE[0]
+    for c in ("x", "y", "yaw"):  # identical before the outage: the hold changes nothing while GNSS is there
+        assert np.array_equal(paper[c][before], held[c][before])
+
+
+@pytest.mark.parametrize("name", LIU)
+def test_liu_encoder_dropout_is_not_fused(name, liu_est, liu_cases):
+    run = liu_cases["encoder_dropout"][0]
+    est = liu_est(name, "encoder_dropout")
+    nf = est.info["n_fused"]
+    win = (run.t >= DROPOUT[0]) & (run.t < DROPOUT[1])
+    assert nf[win].max() <= 6  # GNSS block (5) + gyro only: the encoder block is dropped
+    enc = np.isfinite(run["enc_wl"]) & np.isfinite(run["enc_wr"])
+    assert np.all(nf[enc & ~win][1:] >= 7)  # elsewhere the 6 encoder elements are fused
+
+
+# ============================================================================================
+# Yi 2009 on Yi's robot
+# ============================================================================================
+@pytest.fixture(scope="module")
+def yi_run(sim) -> Run:
+    return sim("stress_yi_random", SEED)
+
+
+@pytest.fixture(scope="module")
+def yi_cases(yi_run):
+    return {
+        "imu_spikes": (F.imu_saturation_spikes(yi_run, SPIKES, 1.0, seed=0), T0, max(SPIKES)),
+        "encoder_dropout": (F.encoder_dropouts(yi_run, *DROPOUT), *DROPOUT),
+    }
+
+
+@pytest.fixture(scope="module")
+def yi_est(yi_cases):
+    cache: dict = {}
+
+    def get(name: str, case: str):
+        if (name, case) not in cache:
+            cache[(name, case)] = registry.estimate(registry.get(name, store_covariance=True), yi_cases[case][0])
+        return cache[(name, case)]
+    return get
+
+
+@pytest.mark.parametrize("case", ["imu_spikes", "encoder_dropout"])
+@pytest.mark.parametrize("name", YI)
+def test_yi_no_nan_and_covariance_pd(name, case, yi_est, yi_cases, yi_run):
+    """No NaN, P (9x9) symmetric positive definite at every IMU step.  Recovery: not defined (no
+    absolute position sensor; the position error of every scheme grows)."""
+    est = yi_est(name, case)
+    for c in ("x", "y", "yaw", "vx", "vy", "wz"):
+        assert np.isfinite(est[c]).all(), c
+    P = est.info["P"]
+    assert P.shape == (est.t.size, 9, 9)
+    h = F.covariance_health(P)
+    assert h.positive_definite, h
+    _, t0, t1 = yi_cases[case]
+    t = est.t
+    vx_err = np.abs(est["vx"] - np.interp(t, yi_run.t, yi_run["truth_vx"]))
+    if case == "imu_spikes":  # the fault reached the filter (the test is not vacuous)
+        assert vx_err[(t >= t0) & (t <= t1 + 0.5)].max() > 0.3 > vx_err[(t >= t0 - 20) & (t < t0)].max()
+
+
+@pytest.mark.parametrize("name", YI)
+def test_yi_encoder_dropout_fuses_exactly_the_remaining_pairs(name, yi_est, yi_cases, yi_run):
+    """Encoders and IMU both at 125 Hz on the same rows: every encoder pair after the first IMU
+    step is one v_x update (v_y too in scheme 3); the 1250 pairs of the 10 s dropout are not fused,
+    v_z = 0 (11) still is at every step."""
+    run = yi_cases["encoder_dropout"][0]
+    pairs = lambda r: np.isfinite(r["enc_wl"]) & np.isfinite(r["enc_wr"])  # noqa: E731
+    imu_rows = np.flatnonzero(np.isfinite(run["imu_gz"]))
+    assert np.array_equal(np.flatnonzero(pairs(yi_run)), imu_rows)
+    assert int(pairs(yi_run).sum() - pairs(run).sum()) == 1250
+    est = yi_est(name, "encoder_dropout")
+    n = est.info["n_updates"]
+    assert n["vx"] == int(pairs(run)[imu_rows[1:]].sum())
+    assert n["vy"] == (n["vx"] if name.endswith("v3") else 0)
+    assert n["vz"] == imu_rows.size - 1
+
+
+# ============================================================================================
+# The report
+# ============================================================================================
+def test_stress_report_writes_markdown(tmp_path):
+    s = S.StressSettings(duration=36.0, t0=18.0, outage=5.0, dropout=3.0, pre_window=8.0, horizon=12.0,
+                         liu_filters=("liu2020.ukf_icr",), yi_filters=("yi2009.ekf_v1",))
+    path = S.stress_report(tmp_path, settings=s, workers=1)
+    assert path == tmp_path / "stress.md" and sorted(p.name for p in tmp_path.iterdir()) == ["stress.md"]
+    text = path.read_text()
+    rows = [ln for ln in text.splitlines() if ln.startswith("| liu2020") or ln.startswith("| yi2009")]
+    # Liu: none, gnss paper, gnss hold, spikes, dropout; Yi: none, spikes, dropout
+    assert len(rows) == 8
+    assert "## Verdict" in text and "recovery is not defined" in text
+    # one number recomputed independently
+    from bench.sim import simulate
+    from bench.spec import load_scenario
+
+    run = simulate(load_scenario("stress_dubhe_random", {"duration": 36.0}), 1)  # as stress_rows does
+    est = registry.estimate(registry.get("liu2020.ukf_icr"), F.gnss_outage(run, 18.0, 23.0))
+    t, err = F.position_error(run, est)
+    rec = F.recovery(t, err, 18.0, 23.0, pre_window=8.0, horizon=12.0)
+    row = next(r for r in rows if "| paper | gnss_outage |" in r and "ukf_icr" in r)
+    assert f"| {rec.max_total:.3f} |" in row and f"| {rec.pre:.3f} |" in row
+
+
+# ============================================================================================
+# One hour (slow): all faults in one run, 15 min apart
+# ============================================================================================
+HOUR = 3600.0
+HOUR_SPIKES = (900.0, 901.3, 902.7)
+HOUR_DROPOUT = (1800.0, 1810.0)
+HOUR_OUTAGE = (2700.0, 2730.0)
+HOUR_WINDOWS = {"imu_spikes": (900.0, 902.7), "encoder_dropout": HOUR_DROPOUT, "gnss_outage": HOUR_OUTAGE}
+
+
+@pytest.fixture(scope="module")
+def hour_dubhe(sim):
+    run = sim("stress_dubhe_random", SEED, duration=HOUR)
+    faulted = F.imu_saturation_spikes(run, HOUR_SPIKES, 1.0, seed=0)
+    faulted = F.gnss_outage(F.encoder_dropouts(faulted, *HOUR_DROPOUT), *HOUR_OUTAGE)
+    return run, faulted
+
+
+@pytest.fixture(scope="module")
+def hour_liu_est(hour_dubhe):
+    cache: dict = {}
+
+    def get(name: str, hold: bool):
+        if (name, hold) not in cache:
+            m = registry.get(name)
+            if hold:
+                m = dataclasses.replace(m, params=dataclasses.replace(m.params, icr_hold_gnss_timeout=HOLD_TIMEOUT))
+            cache[(name, hold)] = registry.estimate(m, hour_dubhe[1])
+        return cache[(name, hold)]
+    return get
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("hold", [False, True], ids=["paper", "icr_hold"])
+@pytest.mark.parametrize("name", LIU)
+def test_one_hour_liu_no_nan_covariance_pd_and_bounded(name, hold, hour_liu_est, hour_dubhe):
+    """1 hour at 100 Hz (360000 steps) with spikes, an encoder dropout and a GNSS outage: no NaN, P
+    symmetric positive definite at every step, and after the first step the posterior position std
+    stays below the GNSS std at every fix (bounded covariance)."""
+    run = hour_dubhe[1]
+    est = hour_liu_est(name, hold)
+    for c in ("x", "y", "yaw", "vx", "vy", "wz", "y_l", "y_r", "x_icr"):
+        assert np.isfinite(est[c]).all(), c
+    P = est.info["P"]
+    h = F.covariance_health(P)
+    assert h.positive_definite and h.steps == run.t.size, h
+    fix = np.isfinite(run["gnss_x"]) & np.isfinite(run["gnss_y"])
+    fix[0] = False  # step 0 is the prior P0 (p0_pos = r_gnss), not an update
+    std = np.sqrt(np.maximum(P[fix, 0, 0], P[fix, 1, 1]))
+    assert std.max() < registry.get(name).params.r_gnss[0]
+
+
+# Measured on the 1-hour run (seed 1):
+XFAIL_HOUR = {
+    ("liu2020.ukf_icr", False, "gnss_outage"): "UKF+ICR as in the paper, 1 h run: 30 s outage at 2700 s, max error "
+                                               "62.0 m (pre-fault 0.048 m), not back within 2x in 30 s; ICR hold: 4.3 s",
+    ("liu2020.mi_ukf", False, "gnss_outage"): "MI-UKF as in the paper, 1 h run: max error 73.0 m (pre-fault 0.034 m), "
+                                              "back within 2x after 25.6 s; ICR hold: 3.9 s",
+    ("liu2020.ukf_icr", False, "imu_spikes"): "UKF+ICR, 1 h run: spikes at 900 s, max error 0.33 m (pre-fault 0.039 m), "
+                                              "back within 2x after 12.0 s > 10 s (gyro spikes -> heading error)",
+    ("liu2020.mi_ukf", False, "imu_spikes"): "MI-UKF, 1 h run: spikes at 900 s, max error 0.41 m (pre-fault 0.031 m), "
+                                             "back within 2x after 11.3 s > 10 s (gyro spikes -> heading error)",
+}
+
+
+def _hour_params():
+    out = []
+    for name in LIU:
+        for hold, faults in ((False, ("imu_spikes", "encoder_dropout", "gnss_outage")), (True, ("gnss_outage",))):
+            for fault in faults:
+                reason = XFAIL_HOUR.get((name, hold, fault))
+                marks = [pytest.mark.slow] + ([pytest.mark.xfail(strict=True, reason=reason)] if reason else [])
+                out.append(pytest.param(name, hold, fault, marks=marks,
+                                        id=f"{name.split('.')[1]}-{'icr_hold' if hold else 'paper'}-{fault}"))
+    return out
+
+
+@pytest.mark.parametrize(("name", "hold", "fault"), _hour_params())
+def test_one_hour_liu_recovers(name, hold, fault, hour_liu_est, hour_dubhe):
+    """Each fault of the 1-hour run: position error back within 2x its pre-fault level within 10 s."""
+    run = hour_dubhe[0]
+    est = hour_liu_est(name, hold)
+    t, err = F.position_error(run, est)
+    rec = F.recovery(t, err, *HOUR_WINDOWS[fault])
+    print(f"1 h {name} hold={hold} {fault}: pre {rec.pre:.3f} m, max {rec.max_total:.3f} m, recovery {rec.recovery_time:.2f} s")
+    assert rec.recovery_time <= RECOVER_WITHIN, rec
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", YI)
+def test_one_hour_yi_no_nan_covariance_pd(name, sim):
+    """Yi 2009 on its robot, 1 hour at 125 Hz (450000 steps) with spikes and an encoder dropout: no
+    NaN, P symmetric positive definite at every step.  The position error grows without an absolute
+    sensor (recovery not defined); the velocity block of P, observed through (11)-(15), stays bounded:
+    its largest standard deviation over the last 10 min is below that over the first 10 min times
+    sqrt(6) (a random walk would grow with sqrt(time): 60 min / 10 min).  Measured (seed 1): velocity
+    std 0.194 -> 0.189 (v1), 0.188 -> 0.241 (v2), 0.013 -> 0.013 m/s (v3); position std, which nothing
+    observes, 1.43 -> 3.20 (v1), 1.43 -> 3.17 (v2), 0.19 -> 0.53 m (v3)."""
+    run = sim("stress_yi_random", SEED, duration=HOUR)
+    faulted = F.encoder_dropouts(F.imu_saturation_spikes(run, HOUR_SPIKES, 1.0, seed=0), *HOUR_DROPOUT)
+    est = registry.estimate(registry.get(name, store_covariance=True), faulted)
+    for c in ("x", "y", "yaw", "vx", "vy", "wz"):
+        assert np.isfinite(est[c]).all(), c
+    P = est.info["P"]
+    h = F.covariance_health(P)
+    assert h.positive_definite and h.steps == est.t.size, h
+    t = est.t
+    vel_std = np.sqrt(np.max(np.diagonal(P[:, 3:6, 3:6], axis1=1, axis2=2), axis=1))
+    first, last = vel_std[(t > 60) & (t < 600)].max(), vel_std[t > HOUR - 600].max()
+    pos_std = np.sqrt(np.maximum(P[:, 0, 0], P[:, 1, 1]))
+    p_first, p_last = pos_std[(t > 60) & (t < 600)].max(), pos_std[t > HOUR - 600].max()
+    print(f"1 h {name}: velocity std first 10 min {first:.4f}, last 10 min {last:.4f} m/s; position std "
+          f"{p_first:.3f} -> {p_last:.3f} m; min eig P {h.min_eig:.3e}")
+    assert last < math.sqrt(6.0) * first
