@@ -101,11 +101,34 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     for key in ("paper", "module", "tables"):
         if key not in decl:
             raise SpecError(path, key, None, "required field is missing")
+    table_ids = [t.get("id") for t in decl["tables"]]
+    for i, tid in enumerate(table_ids):
+        if table_ids.index(tid) != i:
+            raise SpecError(path, f"tables[{i}].id", tid, "table ids must be unique")
+    claim_ids: set[str] = set()
     for i, c in enumerate(decl.get("claims", [])):
         if c.get("kind") not in CLAIM_KINDS:
             raise SpecError(path, f"claims[{i}].kind", c.get("kind"), f"one of {CLAIM_KINDS}")
+        if c.get("id") in claim_ids:
+            raise SpecError(path, f"claims[{i}].id", c.get("id"), "claim ids must be unique")
+        claim_ids.add(c.get("id"))
+        for mid in claim_metric_ids(c):
+            if mid.split(".")[0] not in table_ids:
+                raise SpecError(path, f"claims[{i}]", mid, f"a metric '<table>.<metric>' of a declared table {table_ids}")
     decl["_path"] = str(path)
     return decl
+
+
+def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
+    """The metric ids a claim reads, by its kind."""
+    kind = claim.get("kind")
+    if kind == "ordering":
+        return list(claim["metrics"])
+    if kind == "ratio":
+        return [claim["num"], claim["den"]]
+    if kind == "trend":
+        return list(claim["series"])
+    return [claim["metric"]]
 
 
 def published_values(paper: str, table_id: str) -> dict[str, float]:

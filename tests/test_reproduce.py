@@ -3,7 +3,6 @@ the run cache, atomic writes, serial vs parallel identity."""
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -13,6 +12,7 @@ import pytest
 from bench import reproduce as R
 from bench.cli_more import compare_metrics
 from bench.runner import Runner
+from bench.spec import SpecError
 from bench.spec import load_scenario
 
 PAPER = textwrap.dedent('''
@@ -163,3 +163,23 @@ def test_second_reproduce_comes_from_the_result_cache(paper_dir, tmp_path):
     assert runner2.stats == {"simulated": 0, "cached": 0}  # not even a cached run was read
     assert second.metrics == first.metrics
     assert (tmp_path / "a" / "fake" / "t1.md").read_text() == (tmp_path / "b" / "fake" / "t1.md").read_text()
+
+
+@pytest.mark.parametrize("paper", R.list_papers())
+def test_every_paper_declaration_is_consistent(paper):
+    """Every shipped declaration loads: unique table and claim ids, every claim reads metrics of a
+    declared table, every table names a compute function of its module."""
+    import importlib
+
+    decl = R.load_paper(paper)
+    module = importlib.import_module(decl["module"])
+    for tab in decl["tables"]:
+        assert callable(getattr(module, tab["compute"])), (paper, tab["id"])
+
+
+def test_claim_naming_an_undeclared_table_is_rejected(paper_dir):
+    text = (paper_dir / "fake.toml").read_text().replace('"t1.double"]', '"t9.double"]')
+    (paper_dir / "fake.toml").write_text(text)
+    with pytest.raises(SpecError) as ei:
+        R.load_paper("fake")
+    assert ei.value.field == "claims[0]" and "t9.double" in str(ei.value)

@@ -39,17 +39,6 @@ def result(tmp_path_factory) -> tuple[R.PaperResult, Path]:
     return R.reproduce_paper("yi2009", runner, out, quick=True), out
 
 
-def _metric_ids(claim: dict) -> list[str]:
-    kind = claim["kind"]
-    if kind == "ordering":
-        return list(claim["metrics"])
-    if kind == "ratio":
-        return [claim["num"], claim["den"]]
-    if kind == "trend":
-        return list(claim["series"])
-    return [claim["metric"]]
-
-
 # ----------------------------------------------------------------------------------- declaration
 def test_published_s_gamma_equals_the_paper() -> None:
     if PAPER_MD.is_file():  # read the numbers out of the paper's text itself
@@ -78,7 +67,7 @@ def test_declaration_names_existing_functions_and_metrics() -> None:
     claim_ids = [c["id"] for c in decl["claims"]]
     assert len(claim_ids) == len(set(claim_ids))
     for c in decl["claims"]:
-        for mid in _metric_ids(c):
+        for mid in R.claim_metric_ids(c):
             assert mid.split(".")[0] in ids, (c["id"], mid)
 
 

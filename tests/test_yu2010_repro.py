@@ -42,17 +42,6 @@ def result(tmp_path_factory, cache_dir) -> tuple[R.PaperResult, Path]:
     return R.reproduce_paper("yu2010", runner, out, quick=True, use_cache=False), out
 
 
-def _metric_ids(claim: dict) -> list[str]:
-    kind = claim["kind"]
-    if kind == "ordering":
-        return list(claim["metrics"])
-    if kind == "ratio":
-        return [claim["num"], claim["den"]]
-    if kind == "trend":
-        return list(claim["series"])
-    return [claim["metric"]]
-
-
 # ----------------------------------------------------------------------------------- declaration
 def test_declaration_loads_and_names_existing_functions() -> None:
     decl = R.load_paper("yu2010")
@@ -64,7 +53,7 @@ def test_declaration_loads_and_names_existing_functions() -> None:
     claim_ids = [c["id"] for c in decl["claims"]]
     assert len(claim_ids) == len(set(claim_ids))
     for c in decl["claims"]:
-        for mid in _metric_ids(c):
+        for mid in R.claim_metric_ids(c):
             assert mid.split(".")[0] in ids, (c["id"], mid)
 
 
@@ -92,7 +81,7 @@ def test_every_declared_row_and_claim_is_computed(result) -> None:
             assert row["metric"] in tab["all_metrics"], (tab["id"], row["metric"])
             assert np.isfinite(row["reproduced"]), (tab["id"], row["metric"])
     for c in res.claims:
-        for mid in _metric_ids(c):
+        for mid in R.claim_metric_ids(c):
             assert mid in res.metrics, (c["id"], mid)
         assert c["holds"] is not None, c["id"]
         assert c["measured"] and c["measured"] != "missing metric"
