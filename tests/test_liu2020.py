@@ -21,6 +21,7 @@ from bench.registry import Method
 from bench.run import Run, RunError, from_arrays
 from bench.spec import load_platform, to_dict
 from bench.ukf import FilterError, nees
+from tests.test_ukf import _sincos_mean, _wrapped_resid  # FilterPy adapters, shared
 from methods.liu2020 import EnDr, IcrDr, LiuUkfParams, MiUkf, UkfIcr, fit_icr, run_liu_filter
 
 PLATFORM = to_dict(load_platform("dubhe"))
@@ -196,23 +197,6 @@ class FilterPyUkf:
         self.kf.z_mean, self.kf.residual_z = zm, zr
         self.kf.update(z[idx], R=R, hx=h)
         return int(idx.size)
-
-
-def _sincos_mean(idx):
-    def f(sigmas, Wm):
-        mu = np.dot(Wm, sigmas)
-        for i in idx:
-            mu[i] = math.atan2(np.dot(Wm, np.sin(sigmas[:, i])), np.dot(Wm, np.cos(sigmas[:, i])))
-        return mu
-    return f
-
-
-def _wrapped_resid(idx):
-    def f(a, b):
-        d = np.subtract(a, b)
-        d[idx] = (d[idx] + np.pi) % (2 * np.pi) - np.pi
-        return d
-    return f
 
 
 # ----------------------------------------------------------------------------- fixtures

@@ -69,20 +69,7 @@ def filterpy_ukf(fx, hx, n, m, x_angles, z_angles, x0, P0, Q, R, dt):
     """FilterPy configured with the same sin/cos mean, wrapped residuals and wrapped state add."""
     xa, za = list(x_angles), list(z_angles)
 
-    def mean_fn(idx):
-        def f(sigmas, Wm):
-            mu = np.dot(Wm, sigmas)
-            for i in idx:
-                mu[i] = math.atan2(np.dot(Wm, np.sin(sigmas[:, i])), np.dot(Wm, np.cos(sigmas[:, i])))
-            return mu
-        return f
-
-    def resid_fn(idx):
-        def f(a, b):
-            d = np.subtract(a, b)
-            d[idx] = wrap(d[idx])
-            return d
-        return f
+    mean_fn, resid_fn = _sincos_mean, _wrapped_resid
 
     def state_add(x, dx):
         out = x + dx
