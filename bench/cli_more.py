@@ -5,6 +5,7 @@ Registered into :data:`bench.cli.COMMANDS` on import.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import os
@@ -34,6 +35,13 @@ def register_extra(name: str):
         EXTRAS[name] = fn
         return fn
     return deco
+
+
+def _call_extra(fn: Any, results_dir: Path, quick: bool, workers: int) -> Any:
+    """An extra is ``fn(results_dir, quick)``; one that declares ``workers`` gets ``--workers``."""
+    if "workers" in inspect.signature(fn).parameters:
+        return fn(results_dir, quick, workers=workers)
+    return fn(results_dir, quick)
 
 
 def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
@@ -86,7 +94,7 @@ def _reproduce(a: argparse.Namespace) -> int:
                 log(f"{name}: unchanged since the last run, results kept")
                 continue
             log(f"extra: {name}")
-            EXTRAS[name](results_dir, a.quick)
+            _call_extra(EXTRAS[name], results_dir, a.quick, a.workers)
             marker.parent.mkdir(parents=True, exist_ok=True)
             marker.write_text("done\n")
     print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
@@ -260,11 +268,11 @@ command("verify-runs", "re-simulate the runs of a manifest and check identical c
 
 
 @register_extra("league")
-def _extra_league(results_dir: Path, quick: bool) -> None:
+def _extra_league(results_dir: Path, quick: bool, workers: int = 1) -> None:
     from bench.league import write_league
     from bench.runner import Runner
 
-    write_league(results_dir, quick, Runner(workers=os.cpu_count() or 1))
+    write_league(results_dir, quick, Runner(workers=workers))
 
 
 @register_extra("gap")

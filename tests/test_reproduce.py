@@ -183,3 +183,18 @@ def test_claim_naming_an_undeclared_table_is_rejected(paper_dir):
     with pytest.raises(SpecError) as ei:
         R.load_paper("fake")
     assert ei.value.field == "claims[0]" and "t9.double" in str(ei.value)
+
+
+def test_parallel_papers_write_the_same_bytes_as_serial(paper_dir, tmp_path):
+    """``workers > 1`` runs the papers as jobs in a process pool: same metrics, tables and manifest."""
+    (paper_dir / "fake2.toml").write_text(PAPER.replace('paper = "fake"', 'paper = "fake2"'))
+    out = {}
+    for workers in (1, 2):
+        res = tmp_path / f"results{workers}"
+        got = R.reproduce(["fake", "fake2"], workers=workers, results_dir=res, log=lambda s: None,
+                          cache_dir=tmp_path / f"cache{workers}" / "runs")
+        assert [r.paper for r in got] == ["fake", "fake2"]
+        out[workers] = {p.relative_to(res).as_posix(): p.read_bytes() for p in sorted(res.rglob("*"))
+                        if p.is_file() and p.name not in ("REPORT.md", "history.jsonl")}
+    assert out[1].keys() == out[2].keys() and "runs_manifest.json" in out[1]
+    assert {k for k in out[1] if out[1][k] != out[2][k]} == set()

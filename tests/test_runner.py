@@ -2,6 +2,7 @@
 reproduce leaves no half-written file and the next run resumes from the cache."""
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -70,3 +71,16 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
     r = Runner(cache_dir=cache)
     r.simulate_many(calibration_set(scn, quick=True))
     assert r.stats["cached"] >= len(done_before & {r.path_for(s, seed).name for s, seed in calibration_set(scn, True)})
+
+
+def test_league_cells_in_parallel_equal_serial(tmp_path):
+    """The league's cells run as process-pool jobs with workers > 1: the same table as serial."""
+    from bench.league import league_csv, run_league
+
+    kw = dict(quick=True, methods=["baseline.ideal_dd", "wang2015.constant_chi", "mandow2007.symmetric"],
+              scenarios=("circle_vinyl", "yi_circle"))
+    serial = run_league(Runner(cache_dir=tmp_path, workers=1), **kw)
+    par = run_league(Runner(cache_dir=tmp_path, workers=2), **kw)
+    assert [(c.method, c.scenario) for c in par] == [(c.method, c.scenario) for c in serial]
+    assert all(len(c.values) == 2 and all(map(math.isfinite, c.values)) for c in serial if not c.error)
+    assert league_csv(par) == league_csv(serial)
