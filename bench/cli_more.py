@@ -166,6 +166,13 @@ def _extra_real(results_dir: Path, quick: bool) -> None:
     v = res["verdict"]
     print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
           f"{v['ideal_dd_median_trans']:.3f} m ({res['runtime_s']:.1f} s)")
+    # the gap workflow with the testbed's husky model against the same data (bounded: bench.real_gap.BOUNDED)
+    from bench.real_gap import BOUNDED, run_real_gap
+
+    gap = run_real_gap(table, results_dir / "real", config=BOUNDED)
+    ho = gap["doc"]["held_out"]["cost"]
+    print(f"real gap: {gap['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> "
+          f"{ho['after_mean']:.4g} ({gap['runtime_s']:.1f} s; total {res['runtime_s'] + gap['runtime_s']:.1f} s)")
 
 
 def _drive_args(p: argparse.ArgumentParser) -> None:
