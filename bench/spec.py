@@ -206,6 +206,11 @@ class Platform:
     wheel_radius_scale_l: float = 1.0  # effective rolling radius scale (tire pressure) left
     wheel_radius_scale_r: float = 1.0
     actuator_delay: float = 0.0  # [s] delay between command and PID reference
+    # the robot's own command mapping (its velocity controller between the user's wheel-speed command
+    # and the wheel PIDs): the PID references are g_sum * (w_l + w_r)/2 -+ g_diff * (w_r - w_l)/2;
+    # 1, 1 = the command as given (exactly: the map is skipped)
+    command_gain_sum: float = 1.0
+    command_gain_diff: float = 1.0
     payload: float = 0.0  # extra mass at the CG [kg]
     motor: MotorSpec = field(default_factory=MotorSpec)
     pid: PidSpec = field(default_factory=PidSpec)
@@ -229,6 +234,8 @@ class Platform:
         "wheel_radius_scale_l": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "wheel_radius_scale_r": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "actuator_delay": (lambda x: 0 <= x < 2, "in [0, 2) s"),
+        "command_gain_sum": (lambda x: 0 < x <= 5, "in (0, 5]"),
+        "command_gain_diff": (lambda x: 0 < x <= 5, "in (0, 5]"),
         "payload": (_nonneg, ">= 0 kg"),
     }
 

@@ -185,3 +185,113 @@ def test_slow_pid_rate_is_honoured():
     err = [np.abs(r.data.truth_wl - r.data.cmd_wl)[r.data.t > 1.5].mean() for r in (fast, slow)]
     assert err[1] > err[0]
     assert not np.array_equal(fast.data.truth_x.to_numpy(), slow.data.truth_x.to_numpy())
+
+
+# --- speed work (issue 2's real-time target): the fast paths must keep the physics and the bytes
+
+
+def _drop_kept_client() -> None:
+    """Make the next run_physics connect a fresh pybullet client (the behaviour before clients were kept)."""
+    from bench.sim import testbed
+    cid = getattr(testbed._CLIENT, "cid", -1)
+    if cid >= 0 and testbed.p.isConnected(cid):
+        testbed.p.disconnect(cid)
+    testbed._CLIENT.cid = -1
+
+
+def test_kept_pybullet_client_gives_the_bytes_of_a_fresh_one():
+    """run_physics keeps its pybullet client and empties it between runs: a run after other worlds
+    (a 15 deg ramp, another platform) equals, bit for bit, the run on a freshly connected client; so
+    does the run after a run that failed half way (its client is dropped)."""
+    from bench.sim import run_physics
+    scn = load_scenario("gap_dev_coulomb", {"duration": 1.5})
+    _drop_kept_client()
+    fresh = run_physics(scn, 0).data
+    run_physics(load_scenario("ramp_wood_15", {"duration": 0.5}), 0)
+    run_physics(load_scenario("liu_large_radius", {"duration": 0.5}), 0)
+    after_others = run_physics(scn, 0).data
+
+    def fail(frac: float) -> None:
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        run_physics(load_scenario("circle_vinyl", {"duration": 0.5}), 0, progress=fail)
+    after_failure = run_physics(scn, 0).data
+    assert fresh.tobytes() == after_others.tobytes() == after_failure.tobytes()
+
+
+def test_motor_law_matches_yu_eq26_and_its_limits():
+    """Yu eq. (26) line I = (V - K_B g w)/R_a, tau = n g eff K_T I; the current clamp; the power
+    clamp tau_m = P_max/(g w) with its exact derivative -P_max/(g w^2) (P3-AT motor of Table II)."""
+    from bench.sim.drive import MotorConstants, motor_law, motor_side_torque
+    m = load_scenario("circle_vinyl").platform.motor
+    R_a, K_B = m.nominal_voltage * m.torque_constant / m.stall_torque, m.nominal_voltage / m.no_load_speed
+    k = m.motors_per_side * m.gear_ratio * m.gear_efficiency
+    c = MotorConstants.from_spec(m)
+    law = motor_law(c)
+    # unsaturated: 3 V at 1 rad/s (1.8 A, 2 W)
+    i = (3.0 - K_B * m.gear_ratio * 1.0) / R_a
+    tq, cu, dtq = law(3.0, 1.0)
+    assert cu == pytest.approx(i, rel=1e-12) and i < m.max_current
+    assert tq == pytest.approx(k * m.torque_constant * i, rel=1e-12)
+    assert dtq == pytest.approx(-k * m.torque_constant * K_B * m.gear_ratio / R_a, rel=1e-12)
+    # current limit at stall (10 V would drive 10 A)
+    tq, cu, dtq = law(10.0, 0.0)
+    assert (cu, dtq) == (m.max_current, 0.0) and tq == pytest.approx(k * m.torque_constant * m.max_current)
+    # power limit: 11 V at 2 rad/s asks 12.6 W of a 10 W motor
+    w = 2.0
+    tq, cu, dtq = law(11.0, w)
+    assert m.torque_constant * m.max_current * m.gear_ratio * w > m.max_power
+    assert tq == pytest.approx(k * m.max_power / (m.gear_ratio * w), rel=1e-12)
+    assert dtq == pytest.approx(-k * m.max_power / (m.gear_ratio * w * w), rel=1e-12)
+    assert motor_side_torque(c, 11.0, w) == (tq, cu, dtq)
+
+
+@pytest.mark.parametrize("case", ["tread", "chassis", "eps"])
+def test_janosi_law_is_the_patch_average_in_pure_slip(case):
+    """Pure longitudinal slip: F = -mu N [1 - (K/j)(1 - exp(-j/K))] sign(s), j = |s| Lp / v_ref with
+    v_ref the largest of |r w|, the contact speed and eps (Yu 2010 eq. (7) averaged over the patch)."""
+    from bench.sim.tire import tire_law
+    K, patch, eps, mu, N = 0.003, 0.05, 0.02, 0.8, 70.0
+    law = tire_law(True, 1.06, K, 1.4, patch, eps, k_max=1e9)
+    u, v_lon = {"tread": (0.30, 0.29), "chassis": (0.29, 0.30), "eps": (0.005, 0.004)}[case]
+    s = v_lon - u
+    v_ref = max(abs(u), abs(v_lon), eps)
+    j = abs(s) * patch / v_ref
+    expected = -mu * N * (1.0 - (K / j) * (1.0 - math.exp(-j / K))) * math.copysign(1.0, s)
+    f_lon, f_lat, stiff = law(s, 0.0, u, v_lon, N, mu)
+    assert f_lon == pytest.approx(expected, rel=1e-12) and f_lat == 0.0
+    assert stiff == pytest.approx(abs(f_lon) / abs(s), rel=1e-12)
+
+
+def test_wheel_frame_on_a_ramp():
+    """The wheel frame of a contact normal: e = chassis forward projected on the contact plane, unit;
+    l = n x e.  On a ramp rising along x (normal (-sin b, 0, cos b)) a robot heading up the slope
+    has e = (cos b, 0, sin b), l = (0, 1, 0), whatever the chassis pitch."""
+    from bench.sim.testbed import _wheel_frame
+    b = math.radians(15.0)
+    n = (-math.sin(b), 0.0, math.cos(b))
+    for pitch in (0.0, b, 0.1):  # chassis forward axis pitched up by `pitch`
+        fwd = (math.cos(pitch), 0.0, math.sin(pitch))
+        ex, ey, ez, lx, ly, lz = _wheel_frame(fwd, n)
+        assert (ex, ey, ez) == pytest.approx((math.cos(b), 0.0, math.sin(b)), abs=1e-12)
+        assert (lx, ly, lz) == pytest.approx((0.0, 1.0, 0.0), abs=1e-12)
+
+
+def test_command_map_scales_the_mean_and_the_difference_of_the_references():
+    """Platform.command_gain_sum/diff (the robot's own command mapping): in steady state the wheels
+    track g_sum * mean -+ g_diff * half-difference of the command, while cmd_* logs the command."""
+    from bench.sim import simulate
+
+    base = load_scenario("circle_vinyl", {"duration": 6.0})
+    mapped = load_scenario("circle_vinyl", {"duration": 6.0, "platform.command_gain_sum": 0.8,
+                                            "platform.command_gain_diff": 1.5})
+    a, b = simulate(base, 0), simulate(mapped, 0)
+    np.testing.assert_array_equal(a["cmd_wl"], b["cmd_wl"])
+    late = a.t > 4.0
+    cl, cr = a["cmd_wl"][late].mean(), a["cmd_wr"][late].mean()
+    ta, tb = b.samples("enc_wl"), b.samples("enc_wr")
+    wl, wr = ta[1][ta[0] > 4.0].mean(), tb[1][tb[0] > 4.0].mean()
+    mean, half = 0.5 * (cl + cr), 0.5 * (cr - cl)
+    assert 0.5 * (wl + wr) == pytest.approx(0.8 * mean, rel=0.03)
+    assert 0.5 * (wr - wl) == pytest.approx(1.5 * half, rel=0.05)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 from bench.spec import MotorSpec, PidSpec
 
@@ -45,22 +46,36 @@ class MotorConstants:
         )
 
 
+def motor_law(c: MotorConstants) -> Callable[[float, float], tuple[float, float, float]]:
+    """The side's motor line with its constants bound (called twice per physics step):
+    ``law(volt, w) -> (wheel-side torque [N m], current per motor [A], d torque / d w)``."""
+    gear, K_B, K_T, R_a, i_max, p_max = c.gear, c.K_B, c.K_T, c.R_a, c.i_max, c.p_max
+    slope_free = -c.K_T * c.K_B * c.gear / c.R_a  # d tau_m / d w (unsaturated)
+    k = c.n * c.gear * c.eff  # motor torque -> side torque at the wheels
+    copysign = math.copysign
+
+    def law(volt: float, w: float) -> tuple[float, float, float]:
+        wm = gear * w
+        cur = (volt - K_B * wm) / R_a
+        slope = slope_free
+        if cur > i_max:
+            cur, slope = i_max, 0.0
+        elif cur < -i_max:
+            cur, slope = -i_max, 0.0
+        tau_m = K_T * cur
+        if p_max > 0.0 and abs(tau_m * wm) > p_max:
+            tau_m = copysign(p_max / max(abs(wm), 1e-9), tau_m)
+            cur = tau_m / K_T
+            slope = -abs(tau_m) / max(abs(w), 1e-9) * (1.0 if tau_m * w > 0 else -1.0)
+        return k * tau_m, cur, k * slope
+
+    return law
+
+
 def motor_side_torque(c: MotorConstants, volt: float, w: float) -> tuple[float, float, float]:
-    """(wheel-side torque [N m], current per motor [A], d torque / d w) for voltage and wheel speed."""
-    wm = c.gear * w
-    cur = (volt - c.K_B * wm) / c.R_a
-    slope = -c.K_T * c.K_B * c.gear / c.R_a  # d tau_m / d w (unsaturated)
-    if cur > c.i_max:
-        cur, slope = c.i_max, 0.0
-    elif cur < -c.i_max:
-        cur, slope = -c.i_max, 0.0
-    tau_m = c.K_T * cur
-    if c.p_max > 0.0 and abs(tau_m * wm) > c.p_max:
-        tau_m = math.copysign(c.p_max / max(abs(wm), 1e-9), tau_m)
-        cur = tau_m / c.K_T
-        slope = -abs(tau_m) / max(abs(w), 1e-9) * (1.0 if tau_m * w > 0 else -1.0)
-    k = c.n * c.gear * c.eff
-    return k * tau_m, cur, k * slope
+    """(wheel-side torque [N m], current per motor [A], d torque / d w) for voltage and wheel speed
+    (one-off evaluation of :func:`motor_law`)."""
+    return motor_law(c)(volt, w)
 
 
 class SidePid:

@@ -13,17 +13,28 @@ Both wheels of a side are chained (one spin state per side), as on the P3-AT, DU
 robot.  The wheel spin is not a Bullet joint: wheels are sphere colliders on fixed links, so
 Bullet's solver never sees wheel rotation (DESIGN.md testbed notes: Bullet's own wheel
 friction is heading dependent and unusable).
+
+Speed (issue 2 target: >= 100x real time for one P3-AT at dt = 1/120 s, i.e. <= 83 us a step):
+a step is Bullet's ``stepSimulation`` (~20-30 us), five pybullet round trips (base pose, base
+velocity, contact points, external force and torque: ~10 us) and the scalar Python of
+``run_physics`` (~20 us; plain ``math`` on floats, constants bound once, the wheel frame computed
+once per contact normal).  The pybullet client is kept per thread and emptied between runs
+(``_client``): connecting costs ~25 ms and the first ground plane ~15 ms.  Measured numbers:
+``make bench`` (tests/bench/test_bench_testbed.py).
 """
 from __future__ import annotations
 
+import atexit
 import math
+import os
+import threading
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 from bench.sim.commands import wheel_reference
-from bench.sim.drive import MotorConstants, SidePid, motor_side_torque
+from bench.sim.drive import MotorConstants, SidePid, motor_law
 from bench.sim.tire import friction_coefficient, tire_law
 from bench.spec import Scenario
 
@@ -144,25 +155,104 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
     return ground, robot, cg
 
 
+_CLIENT = threading.local()
+
+
+def _client() -> int:
+    """This thread's pybullet DIRECT client, emptied for a new run.
+
+    Connecting and building the ground on a fresh client costs ~40 ms (4 s of simulated time at
+    100x real time), so the client is kept and emptied with ``resetSimulation``: it rebuilds the
+    dynamics world from scratch, and ``_build_world`` sets every engine parameter we use, so a
+    run on a reused client gives the same bytes as on a fresh one (tests/test_testbed.py).  One
+    client per thread and per process (a forked worker connects its own).  The client is private
+    to this module: nothing else may disconnect it (pybullet reuses client ids).
+    """
+    pid = os.getpid()
+    cid = getattr(_CLIENT, "cid", -1)
+    if cid >= 0 and _CLIENT.pid == pid and p.isConnected(cid):
+        p.resetSimulation(physicsClientId=cid)
+        return cid
+    cid = p.connect(p.DIRECT)
+    _CLIENT.cid, _CLIENT.pid = cid, pid
+    atexit.register(_disconnect, cid, pid)
+    return cid
+
+
+def _disconnect(cid: int, pid: int) -> None:
+    """Close a kept client at interpreter exit (only in the process that opened it)."""
+    if os.getpid() == pid and p.isConnected(cid):
+        p.disconnect(cid)
+
+
+def _wheel_frame(fwd: tuple[float, float, float], n: tuple[float, float, float]
+                 ) -> tuple[float, float, float, float, float, float]:
+    """Unit longitudinal axis (chassis forward projected on the contact plane) and lateral axis
+    ``n x e`` of a wheel whose contact normal is ``n``."""
+    nx, ny, nz = n
+    dot = fwd[0] * nx + fwd[1] * ny + fwd[2] * nz
+    ex, ey, ez = fwd[0] - dot * nx, fwd[1] - dot * ny, fwd[2] - dot * nz
+    en = math.sqrt(ex * ex + ey * ey + ez * ez)
+    ex, ey, ez = ex / en, ey / en, ez / en
+    return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+
+
+def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], list[float]]:
+    """Per-step wheel-speed references (rad/s) as the PID sees them: delayed by the actuator delay,
+    mapped by the robot's own command mapping (``Platform.command_gain_sum/diff``: mean speed and
+    half-difference scaled; skipped at 1, 1 so that the command passes bit for bit), 0 before the
+    command starts (Python floats: faster scalar math in the loop)."""
+    plat = scn.platform
+    t_cmd = np.arange(n_steps + 1) * scn.dt - plat.actuator_delay
+    ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
+    g_sum, g_diff = plat.command_gain_sum, plat.command_gain_diff
+    if g_sum != 1.0 or g_diff != 1.0:
+        mean, half = 0.5 * (ref_l + ref_r), 0.5 * (ref_r - ref_l)
+        ref_l, ref_r = g_sum * mean - g_diff * half, g_sum * mean + g_diff * half
+    ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
+    return ref_l.tolist(), ref_r.tolist()
+
+
+def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SidePid], r_eff: tuple[float, float],
+                           w: list[float], refs: list[float]) -> None:
+    """Initial speed v0 at t = 0: wheels spinning at v0 / r, references at that speed, and the PID
+    integrators preloaded with the voltage that holds this speed on this slope (in place)."""
+    plat, terr = scn.platform, scn.terrain
+    v0 = scn.initial_speed
+    weight = plat.total_mass * GRAVITY
+    for s in (0, 1):
+        w[s] = v0 / r_eff[s]
+        hold = (0.5 * weight * math.sin(terr.slope)
+                + 0.5 * terr.rolling_resistance * weight * math.cos(terr.slope)) * r_eff[s]
+        amps = hold / (motor.n * motor.gear * motor.eff * motor.K_T)
+        volt = motor.K_B * motor.gear * w[s] + motor.R_a * amps
+        pid[s].integ = volt / max(plat.pid.ki, 1e-9)
+        pid[s].prev_ref = refs[s] = w[s]
+
+
 def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | None = None) -> PhysicsTrace:
-    """Step the testbed through the scenario; return the physics-rate trace."""
+    """Step the testbed through the scenario; return the physics-rate trace.
+
+    Per step: two state queries (base pose, base velocity), one contact query, then per side the
+    PID, the motor line and the tire law at each wheel contact, one external force and torque on
+    the chassis, and ``stepSimulation``.  Scalar ``math`` on Python floats throughout (a tiny
+    numpy operation costs ~1 us; this loop is the testbed's whole cost besides Bullet's step).
+    """
     plat, terr = scn.platform, scn.terrain
     dt = scn.dt
     n_steps = int(round(scn.duration / dt))
     n_settle = int(round(SETTLE_TIME / dt))
-    t_grid = np.arange(n_steps + 1) * dt
-    t_cmd = t_grid - plat.actuator_delay  # actuator delay: the PID sees the command late
-    ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
-    ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
+    ref_l, ref_r = _references(scn, seed, n_steps)
     accel_w = scn.command.accel / plat.wheel_radius if scn.command.accel > 0 else math.inf
-    ref_l, ref_r = ref_l.tolist(), ref_r.tolist()  # Python floats: faster scalar math in the loop
 
-    cid = p.connect(p.DIRECT)
+    cid = _client()
     try:
         ground, robot, cg = _build_world(scn, cid)
         motor = MotorConstants.from_spec(plat.motor)
         pid = [SidePid(plat.pid, motor.v_max), SidePid(plat.pid, motor.v_max)]
+        motor_fn = motor_law(motor)
         r_eff = (plat.wheel_radius * plat.wheel_radius_scale_l, plat.wheel_radius * plat.wheel_radius_scale_r)
+        dt_rr = (dt * r_eff[0] * r_eff[0], dt * r_eff[1] * r_eff[1])
         i_side = 2.0 * plat.wheel_inertia
         janosi = terr.model == "janosi"
         K, patch, eps = terr.shear_modulus, plat.patch_length - plat.patch_gap, terr.slip_velocity_eps
@@ -170,13 +260,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         patch_wheel = patch / 2.0  # one wheel's patch length (L - C)/2
         k_max = M_EFF_FRACTION * plat.total_mass / dt
         k_hold = k_max / HOLD_TIME  # stiffness of a standing patch: settles in ~HOLD_TIME
+        k_hold_dt = k_hold * dt
         defl = [[0.0, 0.0] for _ in range(4)]
         mu_roll = terr.rolling_resistance
-        k_lat = terr.shear_modulus_lat_ratio
         pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
         patches = terr.friction_patches
-        rows: list[tuple] = []
-        mu_lat_ratio = terr.mu_lat_ratio
         mu_sa, mu_op = terr.mu_sa, terr.mu_op
         v_max, i_max = motor.v_max, motor.i_max
         lim = accel_w * dt
@@ -184,8 +272,10 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         # (Yu, Yi: 1 kHz; the step-convergence test shows the physics rate already converged);
         # a slower controller holds its output between samples.
         pid_every = max(1, int(round(1.0 / (dt * plat.pid.rate_hz))))
+        pid_dt = dt * pid_every
+        pid_adds_slope = pid_every == 1
         volts = [0.0, 0.0]
-        law = tire_law(janosi, terr.mu_lat_ratio, K, k_lat, patch_wheel, eps, k_max)
+        law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_wheel, eps, k_max)
         k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
         w = [0.0, 0.0]
         th = [0.0, 0.0]
@@ -195,6 +285,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         normal = [0.0] * 4
         cpos: list = [None] * 4
         cnorm: list = [None] * 4
+        # the log is one flat list of floats: floats are not tracked by the cyclic GC, so the loop
+        # allocates no lasting GC-tracked object (a list of row tuples triggered a collection
+        # every ~700 steps, ~1 us a step)
+        log: list[float] = []
+        log_row = log.extend
 
         getpos = p.getBasePositionAndOrientation
         getvel = p.getBaseVelocity
@@ -204,55 +299,54 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         step = p.stepSimulation
         mat = p.getMatrixFromQuaternion
         WORLD = p.WORLD_FRAME
+        tanh, hypot, copysign = math.tanh, math.hypot, math.copysign
 
         total = n_settle + n_steps
         for k in range(-n_settle, n_steps + 1):
-            pos, orn = getpos(robot, physicsClientId=cid)
-            lin, ang = getvel(robot, physicsClientId=cid)
+            # positional client ids: keyword parsing costs ~0.25 us a call, ~1.2 us a step
+            pos, orn = getpos(robot, cid)
+            lin, ang = getvel(robot, cid)
             if k == 0 and scn.initial_speed != 0.0:
                 R0 = mat(orn)
                 v0 = scn.initial_speed
                 lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
                 p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
-                # PID integrators preloaded with the voltage that holds this speed on this slope
-                weight = plat.total_mass * GRAVITY
-                for s in (0, 1):
-                    w[s] = v0 / r_eff[s]
-                    hold = (0.5 * weight * math.sin(terr.slope)
-                            + 0.5 * terr.rolling_resistance * weight * math.cos(terr.slope)) * r_eff[s]
-                    amps = hold / (motor.n * motor.gear * motor.eff * motor.K_T)
-                    volt = motor.K_B * motor.gear * w[s] + motor.R_a * amps
-                    pid[s].integ = volt / max(plat.pid.ki, 1e-9)
-                    pid[s].prev_ref = refs[s] = w[s]
+                _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
             # references (rate-limited)
             if k >= 0:
-                targets = (ref_l[k], ref_r[k])
-                for s in (0, 1):
-                    d = targets[s] - refs[s]
-                    refs[s] += d if abs(d) <= lim else math.copysign(lim, d)
+                dref = ref_l[k] - refs[0]
+                refs[0] += dref if abs(dref) <= lim else copysign(lim, dref)
+                dref = ref_r[k] - refs[1]
+                refs[1] += dref if abs(dref) <= lim else copysign(lim, dref)
             R = mat(orn)
             fwd = (R[0], R[3], R[6])
-            for i in range(4):
-                normal[i] = 0.0
-            for c in getcp(bodyA=robot, bodyB=ground, physicsClientId=cid):
+            px, py, pz = pos
+            lx_, ly_, lz_ = lin
+            wx_, wy_, wz_ = ang
+            normal[0] = normal[1] = normal[2] = normal[3] = 0.0
+            # the robot's only contacts are with the ground; robot is body A of each point
+            for c in getcp(robot, -1, -2, -2, cid):  # (bodyA, any bodyB, any links)
                 li = c[3]
                 if li >= 0:
                     normal[li] += c[9]
                     cpos[li] = c[6]
                     cnorm[li] = c[7]
+            frame_n = frame = None  # wheel frame of the last contact normal (all equal on a plane)
             fx = fy = fz = 0.0
             mx = my = mz = 0.0
             t_now = k * dt
             pid_tick = k % pid_every == 0
             for s in (0, 1):
+                ws = w[s]
                 if pid_tick:  # the controller samples at min(pid.rate_hz, 1/dt); its output is held between
-                    volts[s] = pid[s](refs[s], w[s], dt * pid_every)
+                    volts[s] = pid[s](refs[s], ws, pid_dt)
                 volt = volts[s]
-                tq, cu, dtq = motor_side_torque(motor, volt, w[s])
-                if pid_tick and pid_every == 1 and abs(volt) < v_max and abs(cu) < i_max:
+                tq, cu, dtq = motor_fn(volt, ws)
+                if pid_tick and pid_adds_slope and abs(volt) < v_max and abs(cu) < i_max:
                     dtq += pid_slope  # the PID's proportional action reacts to the new wheel speed too
-                mu_base = friction_coefficient(mu_sa, mu_op, tq, w[s])
-                u = r_eff[s] * w[s]
+                mu_base = friction_coefficient(mu_sa, mu_op, tq, ws)
+                rr = r_eff[s]
+                u = rr * ws
                 f_lon_sum = 0.0
                 stiff_sum = 0.0
                 n_side = 0.0
@@ -265,18 +359,15 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                         continue
                     n_side += nf
                     cx, cy_, cz = cpos[i]
-                    nx, ny, nz = cnorm[i]
-                    rx, ry, rz = cx - pos[0], cy_ - pos[1], cz - pos[2]
+                    rx, ry, rz = cx - px, cy_ - py, cz - pz
                     # velocity of the chassis material point at the contact
-                    vcx = lin[0] + ang[1] * rz - ang[2] * ry
-                    vcy = lin[1] + ang[2] * rx - ang[0] * rz
-                    vcz = lin[2] + ang[0] * ry - ang[1] * rx
-                    # wheel frame on the contact plane
-                    dot = fwd[0] * nx + fwd[1] * ny + fwd[2] * nz
-                    ex, ey, ez = fwd[0] - dot * nx, fwd[1] - dot * ny, fwd[2] - dot * nz
-                    en = math.sqrt(ex * ex + ey * ey + ez * ez)
-                    ex, ey, ez = ex / en, ey / en, ez / en
-                    lx, ly, lz = ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
+                    vcx = lx_ + wy_ * rz - wz_ * ry
+                    vcy = ly_ + wz_ * rx - wx_ * rz
+                    vcz = lz_ + wx_ * ry - wy_ * rx
+                    if cnorm[i] != frame_n:
+                        frame_n = cnorm[i]
+                        frame = _wheel_frame(fwd, frame_n)
+                    ex, ey, ez, lx, ly, lz = frame
                     v_lon = vcx * ex + vcy * ey + vcz * ez
                     v_lat = vcx * lx + vcy * ly + vcz * lz
                     mu = mu_base
@@ -297,16 +388,17 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                         d[1] += v_lat * dt
                         f_lon -= k_hold * d[0]
                         f_lat -= k_hold * d[1]
-                        f_abs = math.hypot(f_lon, f_lat)
+                        f_abs = hypot(f_lon, f_lat)
                         f_lim = mu * nf
                         if f_abs > f_lim:  # breaks away: sliding friction, deflection relaxes
                             scale = f_lim / f_abs
                             f_lon, f_lat = f_lon * scale, f_lat * scale
                             d[0] *= scale
                             d[1] *= scale
-                        stiff += k_hold * dt
+                        stiff += k_hold_dt
                     else:
-                        defl[i][0] = defl[i][1] = 0.0
+                        d = defl[i]
+                        d[0] = d[1] = 0.0
                     f_lon_sum += f_lon
                     stiff_sum += stiff
                     gx = f_lon * ex + f_lat * lx
@@ -325,12 +417,12 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     smy += stiff * (rz * ex - rx * ez)
                     smz += stiff * (rx * ey - ry * ex)
                 # rolling resistance torque on the side's wheels, smooth sign
-                sgn = math.tanh(u / 0.01)
-                t_roll = mu_roll * n_side * r_eff[s] * sgn
-                dt_roll = mu_roll * n_side * r_eff[s] * (1 - sgn * sgn) * r_eff[s] / 0.01
-                rr = r_eff[s]
+                sgn = tanh(u / 0.01)
+                roll = mu_roll * n_side * rr
+                t_roll = roll * sgn
+                dt_roll = roll * (1 - sgn * sgn) * rr / 0.01
                 num = tq - rr * f_lon_sum - t_roll
-                den = i_side - dt * dtq + dt * rr * rr * stiff_sum + dt * dt_roll
+                den = i_side - dt * dtq + dt_rr[s] * stiff_sum + dt * dt_roll
                 dw = dt * num / den
                 c = rr * dw  # longitudinal forces consistent with the new wheel speed
                 fx += c * sx
@@ -339,16 +431,17 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 mx += c * smx
                 my += c * smy
                 mz += c * smz
-                w[s] += dw
-                th[s] += w[s] * dt
+                ws += dw
+                w[s] = ws
+                th[s] += ws * dt
                 # log what the wheel update applied: the linearised torque at the new wheel speed
                 # (the open-loop replay of Yu Fig. 16 integrates exactly this impulse)
                 tau[s] = tq + dtq * dw
                 cur[s] = cu + dtq * dw / k_amp
             if k >= 0:
-                rows.append((
-                    t_now, pos[0], pos[1], pos[2], orn[0], orn[1], orn[2], orn[3],
-                    lin[0], lin[1], lin[2], ang[0], ang[1], ang[2],
+                log_row((
+                    t_now, px, py, pz, orn[0], orn[1], orn[2], orn[3],
+                    lx_, ly_, lz_, wx_, wy_, wz_,
                     w[0], w[1], th[0], th[1], tau[0], tau[1], cur[0], cur[1], refs[0], refs[1],
                     normal[0], normal[1], normal[2], normal[3],
                 ))
@@ -358,11 +451,13 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     progress((k + n_settle) / total)
             else:
                 th[0] = th[1] = 0.0
-            force(robot, -1, (fx, fy, fz), pos, WORLD, physicsClientId=cid)
-            torque_fn(robot, -1, (mx, my, mz), WORLD, physicsClientId=cid)
-            step(physicsClientId=cid)
-    finally:
+            force(robot, -1, (fx, fy, fz), pos, WORLD, cid)
+            torque_fn(robot, -1, (mx, my, mz), WORLD, cid)
+            step(cid)
+    except BaseException:
+        _CLIENT.cid = -1  # a failed run leaves its client to be dropped, not reused
         p.disconnect(cid)
+        raise
     if progress is not None:
         progress(1.0)
-    return PhysicsTrace(np.array(rows, dtype=np.float64), cg)
+    return PhysicsTrace(np.array(log, dtype=np.float64).reshape(-1, len(REC)), cg)

@@ -70,7 +70,12 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
         s = hypot(s_lon, s_lat)
         if s < 1e-12:
             return 0.0, 0.0, k_max
-        v_ref = max(abs(u), hypot(v_lon, s_lat), eps)
+        v_ref = abs(u)  # max(|u|, hypot(v_lon, s_lat), eps), without the builtin's call cost
+        h = hypot(v_lon, s_lat)
+        if h > v_ref:
+            v_ref = h
+        if eps > v_ref:
+            v_ref = eps
         z_lon = s_lon * c_lon / v_ref
         z_lat = s_lat * c_lat / v_ref
         z = hypot(z_lon, z_lat)
