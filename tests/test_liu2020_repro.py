@@ -152,3 +152,29 @@ def test_interval_and_band_helpers_against_printed_quantiles():
     assert (lo, hi) == (pytest.approx(0.2158, abs=1e-4), pytest.approx(9.348, abs=1e-3))
     lo, hi = L.nees_band(5, 6)  # chi2_0.025(30) = 16.791, chi2_0.975(30) = 46.979
     assert (lo, hi) == (pytest.approx(16.791 / 5, abs=1e-3), pytest.approx(46.979 / 5, abs=1e-3))
+
+
+def test_nees_paper_and_consistent_side_by_side(repro):
+    """Both configurations are in the NEES table; the claim flags equal a recomputation from the table's
+    means and the chi-square bands; the consistent filters' noise is the identification redone on the
+    calibration run (not a scored run); Table 2 holds the paper's four methods only."""
+    from methods.liu2020 import UkfIcrConsistent, identify_noise
+
+    res, runner, out = repro
+    m = res.metrics
+    n = len(L.SETTINGS.seeds_quick)
+    b6, b3 = L.nees_band(n, 6), L.nees_band(n, 3)
+    for tag, fs in (("paper", L.FILTERS), ("consistent", tuple(L.CONSISTENT))):
+        ok6 = all(b6[0] <= m[f"nees.{k}.{f}.nees"] <= b6[1] for k in L.SCENARIOS for f in fs)
+        ok3 = all(b3[0] <= m[f"nees.{k}.{f}.nees_pose"] <= b3[1] for k in L.SCENARIOS for f in fs)
+        assert m[f"nees.{tag}_in_band"] == float(ok6 and ok3), tag
+    claims = {c["id"]: c for c in res.claims}
+    assert claims["nees_consistent"]["holds"] is (m["nees.consistent_in_band"] == 1.0)
+    assert claims["nees_paper"]["holds"] is (m["nees.paper_in_band"] == 1.0)
+    text = (out / "nees_consistency.md").read_text()
+    assert "| s2 | UKF+ICR (consistent) |" in text and "| s2 | MI-UKF |" in text
+    assert not any(k.startswith("table2.") and "_c" in k.split(".")[2] for k in m if k.count(".") >= 2)
+    calib = runner.simulate(load_scenario(L.SETTINGS.calib_scenario), L.SETTINGS.calib_seed)
+    _, info = identify_noise([calib.without_truth()], UkfIcrConsistent().params)
+    for key in ("gnss_bias_tau", "gnss_bias_p0", "gnss_white_std", "enc_vx_r"):
+        assert m[f"nees.noise.{key}"] == info[key], key

@@ -8,7 +8,10 @@ definition).
 * Fault functions and measures: synthetic Runs with closed-form expectations.
 * Liu 2020 UKF+ICR and MI-UKF on DUBHE (scenarios/stress_dubhe_random.toml, seed 1, 180 s, faults at
   t0 = 90 s, after the GNSS initial drift has decayed): every fault, as the paper defines the filter
-  and, for the GNSS outage, with the ICR hold of Liu Sec. IV-A (LiuUkfParams.icr_hold_gnss_timeout).
+  and, for the GNSS outage, with the ICR hold of Liu Sec. IV-A (LiuUkfParams.icr_hold_gnss_timeout);
+  and in their consistent configuration (methods.liu2020.UkfIcrConsistent / MiUkfConsistent, noise
+  identified on liu_calib seed 100), which recovers from the 30 s outage the paper's filters do not
+  (their non-recovery stays visible as strict xfails with the measured numbers).
 * Yi 2009 EKF schemes 1-3 on Yi's robot (scenarios/stress_yi_random.toml): IMU spikes and encoder
   dropouts (Yi reads no GNSS).  Yi has no absolute position sensor: its position error grows, so
   position recovery is not defined for it and not asserted.
@@ -311,6 +314,79 @@ def test_liu_recovers_after_fault(case, liu_est, liu_cases, dubhe):
     assert rec.recovery_time <= RECOVER_WITHIN, rec
 
 
+# ---- consistent configuration (methods.liu2020.UkfIcrConsistent / MiUkfConsistent) ----
+@pytest.fixture(scope="module")
+def liu_consistent(sim, liu_cases):
+    """name -> calibrated consistent filter (noise identified on liu_calib seed 100, not a stress run),
+    and a cache of its estimates per fault."""
+    from methods import liu2020
+
+    calib = sim("liu_calib", 100)
+    meth = {n: registry.calibrate(c(), [calib]) for n, c in
+            (("liu2020.ukf_icr", liu2020.UkfIcrConsistent), ("liu2020.mi_ukf", liu2020.MiUkfConsistent))}
+    cache: dict = {}
+
+    def get(name: str, case: str):
+        if (name, case) not in cache:
+            cache[(name, case)] = registry.estimate(meth[name], liu_cases[case][0])
+        return cache[(name, case)]
+    return get
+
+
+def _consistent_params():
+    out = []
+    for n in LIU:
+        for fault in ("gnss_outage", "imu_spikes", "encoder_dropout"):
+            marks = [] if fault == "gnss_outage" else [pytest.mark.slow]
+            out.append(pytest.param(n, fault, marks=marks, id=f"{n.split('.')[1]}-{fault}"))
+    return out
+
+
+@pytest.mark.parametrize(("name", "fault"), _consistent_params())
+def test_liu_consistent_recovers_and_stays_healthy(name, fault, liu_consistent, liu_cases, dubhe):
+    """The consistent configuration: no NaN, P positive definite at every step, and the position error
+    back within 2x its pre-fault level within 10 s of the fault's end (the paper's filters do not
+    recover from the 30 s outage: XFAIL_RECOVERY).  Measured on seed 1: outage recovery 0.98 s
+    (UKF+ICR, max 1.78 m) and 1.15 s (MI-UKF, max 12.2 m); spikes and dropout 0.00 s."""
+    est = liu_consistent(name, fault)
+    for c in ("x", "y", "yaw", "vx", "vy", "wz", "y_l", "y_r", "x_icr"):
+        assert np.isfinite(est[c]).all(), c
+    h = F.covariance_health(est.info["P"])
+    assert h.positive_definite, h
+    _, t0, t1 = liu_cases[fault]
+    t, err = F.position_error(dubhe, est)
+    rec = F.recovery(t, err, t0, t1)
+    print(f"consistent {name} {fault}: pre {rec.pre:.3f} m, max {rec.max_total:.3f} m, recovery {rec.recovery_time:.2f} s")
+    assert rec.recovery_time <= RECOVER_WITHIN, rec
+
+
+@pytest.mark.parametrize("name", [
+    "liu2020.ukf_icr",
+    pytest.param("liu2020.mi_ukf", marks=pytest.mark.xfail(strict=True, reason=(
+        "MI-UKF consistent, seed 1: position sd 0.030 -> 1.48 m over the 30 s outage but error 12.2 m at its end "
+        "(8 sigma): the multi-innovation correction (eq. (28)) re-applies half of the previous gain-times-innovation "
+        "while the covariance update uses the current gain only, so the encoder-velocity corrections act with weight "
+        "1.5 that P does not account for"))),
+])
+def test_liu_consistent_covariance_grows_through_outage(name, liu_consistent, liu_est, liu_cases, dubhe):
+    """Why it recovers: without the encoder pose pseudo-measurement nothing observes the position
+    during the outage, so its covariance grows with the dead-reckoning error (error at the outage's
+    end within 3 sigma of the filter's own position std, which grew > 10x), while the paper's filter
+    keeps a position std of a few cm (pose NEES >> 3) against a metres-large error."""
+    t = dubhe.t
+    a, b = OUTAGE
+    i0, i1 = int(np.searchsorted(t, a)) - 1, int(np.searchsorted(t, b)) - 1
+    for est, consistent in ((liu_consistent(name, "gnss_outage"), True), (liu_est(name, "gnss_outage"), False)):
+        P = est.info["P"]
+        sd = np.sqrt(P[:, 0, 0] + P[:, 1, 1])
+        e = math.hypot(est["x"][i1] - dubhe["truth_x"][i1], est["y"][i1] - dubhe["truth_y"][i1])
+        print(f"{name} consistent={consistent}: pos sd {sd[i0]:.3f} -> {sd[i1]:.3f} m, error at outage end {e:.3f} m")
+        if consistent:
+            assert sd[i1] > 10 * sd[i0] and e < 3 * sd[i1]
+        else:
+            assert e > 3 * sd[i1]
+
+
 @pytest.mark.parametrize("name", LIU)
 def test_recovery_criterion_quiet_on_fault_free_run(name, liu_est, liu_cases, dubhe):
     """Validity of the criterion: the fault-free run, scored on the same windows, 'recovers' at
@@ -435,13 +511,14 @@ def test_yi_encoder_dropout_fuses_exactly_the_remaining_pairs(name, yi_est, yi_c
 # ============================================================================================
 def test_stress_report_writes_markdown(tmp_path):
     s = S.StressSettings(duration=36.0, t0=18.0, outage=5.0, dropout=3.0, pre_window=8.0, horizon=12.0,
-                         liu_filters=("liu2020.ukf_icr",), yi_filters=("yi2009.ekf_v1",))
+                         liu_filters=("liu2020.ukf_icr",), yi_filters=("yi2009.ekf_v1",), consistent=False)
     path = S.stress_report(tmp_path, settings=s, workers=1)
     assert path == tmp_path / "stress.md" and sorted(p.name for p in tmp_path.iterdir()) == ["stress.md"]
     text = path.read_text()
     rows = [ln for ln in text.splitlines() if ln.startswith("| liu2020") or ln.startswith("| yi2009")]
-    # Liu: none, gnss paper, gnss hold, spikes, dropout; Yi: none, spikes, dropout
-    assert len(rows) == 8
+    # Liu: none, gnss paper, gnss hold, spikes, dropout; Yi: none, spikes, dropout; Yi velocity NEES: 1
+    assert len(rows) == 9
+    assert "### Yi 2009: velocity NEES on the fault-free run" in text
     assert "## Verdict" in text and "recovery is not defined" in text
     # one number recomputed independently
     from bench.sim import simulate
