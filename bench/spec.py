@@ -211,6 +211,9 @@ class Platform:
     # 1, 1 = the command as given (exactly: the map is skipped)
     command_gain_sum: float = 1.0
     command_gain_diff: float = 1.0
+    # ... and its limits [rad/s] on the mapped mean speed and half-difference (inf = none)
+    command_limit_mean: float = math.inf
+    command_limit_diff: float = math.inf
     payload: float = 0.0  # extra mass at the CG [kg]
     motor: MotorSpec = field(default_factory=MotorSpec)
     pid: PidSpec = field(default_factory=PidSpec)
@@ -236,6 +239,8 @@ class Platform:
         "actuator_delay": (lambda x: 0 <= x < 2, "in [0, 2) s"),
         "command_gain_sum": (lambda x: 0 < x <= 5, "in (0, 5]"),
         "command_gain_diff": (lambda x: 0 < x <= 5, "in (0, 5]"),
+        "command_limit_mean": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
+        "command_limit_diff": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
         "payload": (_nonneg, ">= 0 kg"),
     }
 

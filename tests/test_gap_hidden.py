@@ -42,6 +42,10 @@ CASES = [
     ("slope", JAN, {"terrain.slope": math.radians(-3.0)}, 107, {"slope_deg": -3.0}),
     ("motor_saturation", JAN, {"platform.motor.max_current": 2.2}, 108, {"max_current": 2.2}),
     ("actuator_delay", COUL, {"platform.actuator_delay": 0.045}, 109, {"delay": 0.045}),
+    ("command_map", JAN, {"platform.command_gain_sum": 0.92, "platform.command_gain_diff": 1.25}, 112,
+     {"gain_sum": 0.92, "gain_diff": 1.25}),
+    ("command_limit", COUL, {"platform.command_limit_mean": 3.6, "platform.command_limit_diff": 1.3}, 113,
+     {"limit_mean": 3.6, "limit_diff": 1.3}),
     ("encoder_scale", JAN, {"platform.sensors.encoder.scale_error_l": -0.04}, 110, {"scale_error_l": -0.04}),
     ("gyro_bias", COUL, {"platform.sensors.imu.gyro_bias_z": -0.015}, 111, {"gyro_bias_z": -0.015}),
 ]

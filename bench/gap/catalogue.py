@@ -141,6 +141,19 @@ def _delay_spec(scn, v):
     return {"platform.actuator_delay": v[0]}
 
 
+def _cmd_spec(scn, v):
+    return {"platform.command_gain_sum": v[0], "platform.command_gain_diff": v[1]}
+
+
+def _cmd_limit_spec(scn, v):
+    return {"platform.command_limit_mean": v[0], "platform.command_limit_diff": v[1]}
+
+
+def _cmd_limit_neutral(scn):
+    lim = (scn.platform.command_limit_mean, scn.platform.command_limit_diff)
+    return lim if all(map(math.isfinite, lim)) else None
+
+
 def _enc_spec(scn, v):
     return {"platform.sensors.encoder.scale_error_l": v[0], "platform.sensors.encoder.scale_error_r": v[1]}
 
@@ -245,6 +258,28 @@ CATALOGUE: tuple[Effect, ...] = (
         "every transient (acceleration, braking, turn entry) late by the same time; steady "
         "states unchanged", "delay",
         lambda s: (s.platform.actuator_delay,), _delay_apply, _delay_spec),
+    Effect(
+        "command_map", "the robot's own command mapping",
+        "The robot's velocity controller maps the wheel-speed command before the wheel PIDs: the "
+        "mean speed scaled by g_sum, the speed difference (the turn) by g_diff (a controller with "
+        "its own effective track or yaw-rate gain, a units slip in the command path).",
+        (Param("gain_sum", "-", 0.2, 3.0, 0.05), Param("gain_diff", "-", 0.05, 3.0, 0.05)),
+        ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y", "ref_yaw"),
+        "steady wheel speeds differ from the commanded ones by one factor on their mean (straight "
+        "lines) and another on their difference (turns); the wheels still track, torques follow",
+        "physics",
+        lambda s: (s.platform.command_gain_sum, s.platform.command_gain_diff), _phys(_cmd_spec), _cmd_spec),
+    Effect(
+        "command_limit", "the robot's own command limits",
+        "The robot's velocity controller clips the (mapped) command: its mean wheel speed to "
+        "+-limit_mean and its half-difference (the turn) to +-limit_diff [rad/s] (a linear-speed "
+        "and a yaw-rate limit).",
+        (Param("limit_mean", "rad/s", 0.3, 50.0, 0.05, log=True), Param("limit_diff", "rad/s", 0.1, 50.0, 0.05, log=True)),
+        ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y", "ref_yaw"),
+        "wheel speeds flat at a ceiling in fast straight runs, turn rate flat at a ceiling in tight "
+        "turns, while the command asks for more; unchanged below the limits", "physics",
+        _cmd_limit_neutral, _phys(_cmd_limit_spec), _cmd_limit_spec,
+        probe_grid=((2.0, 1.0), (4.0, 1.0), (4.0, 2.0), (8.0, 2.0), (8.0, 4.0), (50.0, 1.0), (2.0, 50.0))),
     Effect(
         "encoder_scale", "encoder scale error",
         "Fractional scale error of each side's encoder (wrong counts per revolution, gearing).",

@@ -31,6 +31,8 @@ DEV_HIDDEN: dict[str, dict[str, Any]] = {
     "slope": {"terrain.slope": math.radians(4.0)},
     "motor_saturation": {"platform.motor.max_current": 1.2},
     "actuator_delay": {"platform.actuator_delay": 0.08},
+    "command_map": {"platform.command_gain_sum": 1.1, "platform.command_gain_diff": 0.8},
+    "command_limit": {"platform.command_limit_mean": 4.0, "platform.command_limit_diff": 1.2},
     "encoder_scale": {"platform.sensors.encoder.scale_error_r": 0.03},
     "gyro_bias": {"platform.sensors.imu.gyro_bias_z": 0.01},
 }

@@ -200,15 +200,18 @@ def _wheel_frame(fwd: tuple[float, float, float], n: tuple[float, float, float]
 def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], list[float]]:
     """Per-step wheel-speed references (rad/s) as the PID sees them: delayed by the actuator delay,
     mapped by the robot's own command mapping (``Platform.command_gain_sum/diff``: mean speed and
-    half-difference scaled; skipped at 1, 1 so that the command passes bit for bit), 0 before the
+    half-difference scaled, then clipped to ``command_limit_mean/diff``; skipped at gains 1 and no
+    limits, so that the command passes bit for bit), 0 before the
     command starts (Python floats: faster scalar math in the loop)."""
     plat = scn.platform
     t_cmd = np.arange(n_steps + 1) * scn.dt - plat.actuator_delay
     ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
     g_sum, g_diff = plat.command_gain_sum, plat.command_gain_diff
-    if g_sum != 1.0 or g_diff != 1.0:
-        mean, half = 0.5 * (ref_l + ref_r), 0.5 * (ref_r - ref_l)
-        ref_l, ref_r = g_sum * mean - g_diff * half, g_sum * mean + g_diff * half
+    lim_mean, lim_diff = plat.command_limit_mean, plat.command_limit_diff
+    if g_sum != 1.0 or g_diff != 1.0 or math.isfinite(lim_mean) or math.isfinite(lim_diff):
+        mean = np.clip(g_sum * 0.5 * (ref_l + ref_r), -lim_mean, lim_mean)
+        half = np.clip(g_diff * 0.5 * (ref_r - ref_l), -lim_diff, lim_diff)
+        ref_l, ref_r = mean - half, mean + half
     ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
     return ref_l.tolist(), ref_r.tolist()
 
