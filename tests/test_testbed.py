@@ -295,3 +295,19 @@ def test_command_map_scales_the_mean_and_the_difference_of_the_references():
     mean, half = 0.5 * (cl + cr), 0.5 * (cr - cl)
     assert 0.5 * (wl + wr) == pytest.approx(0.8 * mean, rel=0.03)
     assert 0.5 * (wr - wl) == pytest.approx(1.5 * half, rel=0.05)
+
+
+def test_command_limit_clips_the_mapped_mean_and_difference():
+    """Platform.command_limit_mean/diff clip the (mapped) command's mean and half-difference."""
+    from bench.sim import simulate
+
+    scn = load_scenario("circle_vinyl", {"duration": 6.0})
+    cl, cr = simulate(scn, 0)["cmd_wl"], simulate(scn, 0)["cmd_wr"]
+    mean, half = 0.5 * (cl[-1] + cr[-1]), 0.5 * (cr[-1] - cl[-1])
+    lim_mean, lim_diff = 0.6 * abs(mean), 0.5 * abs(half)
+    run = simulate(load_scenario("circle_vinyl", {"duration": 6.0, "platform.command_limit_mean": lim_mean,
+                                                  "platform.command_limit_diff": lim_diff}), 0)
+    ta, tb = run.samples("enc_wl"), run.samples("enc_wr")
+    wl, wr = ta[1][ta[0] > 4.0].mean(), tb[1][tb[0] > 4.0].mean()
+    assert 0.5 * (wl + wr) == pytest.approx(math.copysign(lim_mean, mean), rel=0.03)
+    assert 0.5 * (wr - wl) == pytest.approx(math.copysign(lim_diff, half), rel=0.05)
