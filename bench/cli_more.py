@@ -20,7 +20,7 @@ from bench.cli import _progress, command
 # ------------------------------------------------------------------------------------------ reproduce
 def _repro_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml); default all")
-    p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example and the real data")
+    p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example, the real data and the stress report")
     p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI)")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
@@ -97,6 +97,7 @@ def _reproduce(a: argparse.Namespace) -> int:
             _call_extra(EXTRAS[name], results_dir, a.quick, a.workers)
             marker.parent.mkdir(parents=True, exist_ok=True)
             marker.write_text("done\n")
+    R.link_extras(Path(results_dir), a.quick)
     print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
     return 0
 
@@ -287,3 +288,17 @@ def _extra_gap(results_dir: Path, quick: bool) -> None:
     from bench.gap import write_worked_example
 
     write_worked_example(Path(results_dir) / "gap")
+
+
+@register_extra("stress")
+def _extra_stress(results_dir: Path, quick: bool, workers: int = 1) -> None:
+    """Filters under stress (``results/stress.md``): in ``make reproduce`` the short runs of seed 1
+    (``bench.stress.QUICK``, ~1.5 min on 2 cores); the six-seed + 1-hour table (``bench.stress.FULL``,
+    tens of minutes) is ``python -c "from bench.stress import stress_report; stress_report('results',
+    quick=False)"``.  Skipped by ``reproduce --quick`` (CI): ``make test`` runs the stress tests."""
+    if quick:
+        print("stress: skipped in --quick (tests/test_stress.py runs in make test)")
+        return
+    from bench.stress import stress_report
+
+    print(f"stress: {stress_report(results_dir, quick=True, workers=workers)}")

@@ -507,6 +507,37 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     return results
 
 
+EXTRA_RESULTS = (  # (file under results/, what it is): written by the extras of `reproduce --all`
+    ("league{suffix}.md", "cross-paper league table: every method on every scenario where its sensors exist"),
+    ("real/husky.md", "real Clearpath Husky (DRIVE data): calibrated kinematic models scored on held-out steps"),
+    ("real/husky_gap.md", "gap workflow with the testbed's husky model against the real data"),
+    ("gap/worked_example.md", "gap workflow worked example on simulated data with a hidden effect"),
+    ("stress.md", "filters under stress: GNSS outage, IMU spikes, encoder dropouts"),
+)
+EXTRAS_BEGIN, EXTRAS_END = "<!-- extras -->", "<!-- /extras -->"
+
+
+def link_extras(results_dir: Path, quick: bool) -> Path | None:
+    """Add (or refresh) the section of REPORT.md that links the extras' results that exist; it sits
+    after the summary table, between two HTML comments, so that a rerun replaces it."""
+    path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
+    if not path.is_file():
+        return None
+    text = path.read_text()
+    if EXTRAS_BEGIN in text and EXTRAS_END in text:
+        head, _, rest = text.partition(EXTRAS_BEGIN)
+        text = head + rest.partition(EXTRAS_END)[2].lstrip("\n")
+    suffix = "_quick" if quick else ""
+    rows = [f"- [{rel.format(suffix=suffix)}]({rel.format(suffix=suffix)}): {what}"
+            for rel, what in EXTRA_RESULTS if (results_dir / rel.format(suffix=suffix)).is_file()]
+    if rows:
+        section = "\n".join([EXTRAS_BEGIN, "## Beyond the papers", "", *rows, EXTRAS_END, "", ""])
+        at = text.find('<a id="')
+        text = text[:at] + section + text[at:] if at >= 0 else text + "\n" + section
+    atomic_write_text(path, text)
+    return path
+
+
 # Papers by their measured reproduction time (longest first), the order in which parallel jobs are
 # submitted so that the longest one does not start last; a paper not listed goes last.
 PAPER_COST_ORDER = ("mandow2007", "liu2020", "yi2009", "wang2015", "yu2010")

@@ -198,3 +198,18 @@ def test_parallel_papers_write_the_same_bytes_as_serial(paper_dir, tmp_path):
                         if p.is_file() and p.name not in ("REPORT.md", "history.jsonl")}
     assert out[1].keys() == out[2].keys() and "runs_manifest.json" in out[1]
     assert {k for k in out[1] if out[1][k] != out[2][k]} == set()
+
+
+def test_report_links_the_extras_that_exist_and_a_rerun_replaces_the_section(tmp_path):
+    rep = tmp_path / "REPORT.md"
+    rep.write_text("# r\n\n## Summary\n\n| a |\n\n<a id=\"p\"></a>\n## Paper p\n\ntext\n")
+    (tmp_path / "league.md").write_text("x")
+    R.link_extras(tmp_path, quick=False)
+    first = rep.read_text()
+    assert "[league.md](league.md)" in first and "stress.md" not in first
+    assert first.index("Beyond the papers") < first.index('<a id="p">') and first.endswith("## Paper p\n\ntext\n")
+    (tmp_path / "stress.md").write_text("y")
+    R.link_extras(tmp_path, quick=False)
+    second = rep.read_text()
+    assert second.count("Beyond the papers") == 1 and "[stress.md](stress.md)" in second
+    assert second.replace("- [stress.md](stress.md): " + dict(R.EXTRA_RESULTS)["stress.md"] + "\n", "") == first
