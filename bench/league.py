@@ -149,6 +149,7 @@ def _cell_job(name: str, sname: str, quick: bool, n_seeds: int, cache_dir: str) 
 CELL_COST = {"liu2020.mi_ukf": 20.0, "liu2020.ukf_icr": 20.0, "liu2020.mi_ukf_consistent": 20.0,
              "liu2020.ukf_icr_consistent": 20.0, "mandow2007.asymmetric_ga": 25.0,
              "mandow2007.asymmetric_de": 8.0, "yi2009.ekf_v1": 4.0, "yi2009.ekf_v2": 4.0, "yi2009.ekf_v3": 4.0,
+             "yi2009.ekf_v1_consistent": 12.0, "yi2009.ekf_v2_consistent": 12.0, "yi2009.ekf_v3_consistent": 12.0,
              "yu2010.closed_loop": 1.5, "yu2010.open_loop": 1.5}
 
 

@@ -37,6 +37,13 @@ Map: paper equation -> code
                                                                      :meth:`Yi2009Ekf.calibrate`
     Fig. 5         variants 1/2/3                                 -> ``Yi2009Ekf(variant=...)``,
                                                                      :func:`ekf_v1`, :func:`ekf_v2`, :func:`ekf_v3`
+    (not Yi's)     consistent configuration (issue 4): sigma_1 of (13) and sigma_2 of (15) identified on
+                   calibration runs against the reference sensor   -> :func:`identify_yi_noise`,
+                                                                     :func:`reference_body_velocity`,
+                                                                     :func:`pseudo_measurements`,
+                                                                     :func:`correlated_noise_fit`,
+                                                                     :class:`Yi2009EkfConsistent`,
+                                                                     :func:`ekf_v1_consistent` .. ``_v3_consistent``
 
 How the paper estimates slip (Sec. III-C, IV-A)
     The state is the 9-vector (P_I, V_I, Theta) of eq. (18): slip is NOT augmented.  Slip is
@@ -60,6 +67,17 @@ Measured behaviour of this design (synthetic runs of tests/test_yi2009.py)
     data a steady turn slowly drifts to the (14) bound (not with roll/pitch frozen, not in scheme 2),
     which biases its slip estimates.  With good sensors and 10 % net slip the ordering of Fig. 5
     (3 <= 2 <= 1) is reproduced on turning paths.
+
+Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_consistency.md)
+    The paper configuration is heavily overconfident in velocity: the v_x row (13) is fused at 125 Hz
+    as white noise with sigma_1 = r sigma_en (~0.009 m/s), but its real error is a bias with a
+    correlation time of seconds (slip ignored in scheme 1; in schemes 2-3 the fed-back slip makes it
+    the filter's own previous velocity error, bounded only by (14)), and scheme 3's v_y row (15)
+    carries the S(gamma) error, also a slowly varying bias, fused as white with sigma_2 = 0.05 m/s.
+    :class:`Yi2009EkfConsistent` runs the SAME :func:`run_filter` with sigma_1 and sigma_2 identified on
+    calibration runs (:func:`identify_yi_noise`: residual of the fused pseudo-measurement against the
+    reference-derived body velocity, white + AR(1) with the mean kept, correlated part inflated by the
+    effective-sample factor (1 + rho)/(1 - rho) at the filter rate, as methods.liu2020.identify_noise).
 
 Variants (Fig. 5, Sec. V-C)
     1: v_x (13) without slip (lambda' = 0) and v_z (11);  2: v_x with slip feedback (13)-(14) and
@@ -683,3 +701,214 @@ def ekf_v2(**kwargs: Any) -> Yi2009Ekf:
 def ekf_v3(**kwargs: Any) -> Yi2009Ekf:
     """Fig. 5 scheme 3: v_x with slip, v_y (15) with S(gamma) (41), v_z (11)."""
     return Yi2009Ekf(variant=3, **kwargs)
+
+
+# ------------------------------------------------------------------------------------------
+# Consistent configuration (not in the paper): measurement noise identified on calibration runs
+# ------------------------------------------------------------------------------------------
+def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyorder: int = 2
+                            ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Body velocity (v_x, v_y) [m/s] at times ``t`` from the reference pose (ref_x, ref_y, ref_yaw),
+    by Savitzky-Golay differentiation over ``window`` s (local polynomial of ``polyorder``) on the
+    reference's own uniform grid, divided by the filter's gain on a turn at the smoothed yaw rate (exact
+    for a steady turn), rotated by the smoothed reference yaw; NaN outside the reference span.
+    Also returns the variance of the derivative's noise per axis, pos_noise^2 sum(c_k^2) with the
+    filter's derivative coefficients c_k and ``meta.platform.sensors.reference.pos_noise`` (0 if absent)."""
+    from scipy.signal import savgol_coeffs
+
+    d = run.data
+    for c in REF_CHANNELS:
+        if c not in d.columns:
+            raise RunError(run.where, c, None, "missing reference channel needed by the noise identification")
+    ok = np.isfinite(d["ref_x"].to_numpy()) & np.isfinite(d["ref_y"].to_numpy()) & np.isfinite(d["ref_yaw"].to_numpy())
+    tr = run.t[ok]
+    h = float(np.median(np.diff(tr))) if tr.size > 1 else math.nan
+    win = max(polyorder + 2, int(round(window / h)) | 1) if math.isfinite(h) else 0
+    if tr.size < max(win, 8):
+        raise RunError(run.where, "ref_x", f"{tr.size} samples", f"too few reference samples for a {window} s derivative")
+    tg = np.arange(tr[0], tr[-1] + 0.5 * h, h)
+    xs, ys, yaws = (np.interp(tg, tr, v) for v in (d["ref_x"].to_numpy()[ok], d["ref_y"].to_numpy()[ok],
+                                                  np.unwrap(d["ref_yaw"].to_numpy()[ok])))
+    kw = dict(window_length=win, polyorder=polyorder, delta=h, mode="interp")
+    xd, yd = savgol_filter(xs, deriv=1, **kw), savgol_filter(ys, deriv=1, **kw)
+    psi = savgol_filter(yaws, deriv=0, **kw)
+    psid = savgol_filter(yaws, deriv=1, **kw)
+    # On a turn at yaw rate w the derivative filter returns gain(w) = sum_k c_k sin(w t_k) / w of the
+    # true velocity (antisymmetric c_k: no phase shift; ~2.5 % low at 1 rad/s over 1 s): divide it out.
+    coef = savgol_coeffs(win, polyorder, deriv=1, delta=h, use="dot")
+    tk = (np.arange(win) - win // 2) * h
+    w = np.where(np.abs(psid) > 1e-6, psid, 1e-6)
+    gain = (np.sin(np.outer(w, tk)) @ coef) / w
+    c, s = np.cos(psi), np.sin(psi)
+    vx, vy = (c * xd + s * yd) / gain, (-s * xd + c * yd) / gain
+    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference", {})
+    sig = float(ref.get("pos_noise", 0.0)) if isinstance(ref, Mapping) else 0.0
+    var = sig**2 * float(np.sum(coef**2))
+    inside = (t >= tg[0]) & (t <= tg[-1])
+    return (np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan), var)
+
+
+def pseudo_measurements(est_slip: np.ndarray, s_icr: np.ndarray, yaw_rate: np.ndarray, enc: np.ndarray,
+                        wheel_radius: float, variant: int) -> tuple[np.ndarray, np.ndarray]:
+    """The v_x (13) and v_y (15) pseudo-measurements the filter fused at each step, rebuilt from its
+    output: slip lambda(k-1) (posterior of the previous step, eq. (6)) constrained by (14) with the
+    wheel speeds of step k; v_y = -S yaw_rate (15) with the S(gamma) of the step (variant 3, else NaN).
+    (The yaw rate here is the posterior's (10e); the filter uses the prior's attitude: same gyro sample.)"""
+    lam = np.vstack((np.zeros((1, 2)), np.nan_to_num(est_slip[:-1])))
+    wl, wr = enc[:, 0], enc[:, 1]
+    if variant >= 2:
+        pl, pr = constrained_slip(lam[:, 0], lam[:, 1], wl, wr)
+    else:
+        pl = pr = np.zeros(wl.size)
+    y_x = 0.5 * wheel_radius * (wl * (1.0 - pl) + wr * (1.0 - pr))
+    y_y = -s_icr * yaw_rate if variant == 3 else np.full(wl.size, np.nan)
+    return y_x, y_y
+
+
+def correlated_noise_fit(res: Sequence[np.ndarray], lag: int) -> tuple[float, float, float]:
+    """(white variance, correlated variance s_c^2, lag-1 correlation rho) of residuals modelled as
+    white + AR(1) WITHOUT removing their mean: a bias is an error the filter must cover, and it is
+    the limit rho -> 1 of the AR(1).  Autocovariances pooled over the runs: C(k) = s_c^2 rho^k for
+    k >= 1, so rho = (C(lag)/C(1))^(1/(lag - 1)) and s_c^2 = C(1)/rho; white = C(0) - s_c^2."""
+    if lag < 2:
+        raise ValueError(f"correlated_noise_fit: lag = {lag} must be >= 2")
+    c = np.zeros(3)
+    n = 0
+    for e in res:
+        e = np.asarray(e, float)
+        if e.size <= lag:
+            continue
+        c += (float(e @ e), float(e[1:] @ e[:-1]), float(e[lag:] @ e[:-lag]))
+        n += e.size
+    if n == 0:
+        raise ValueError(f"correlated_noise_fit: no residual longer than lag {lag}")
+    c0, c1, cl = c / n
+    if not (c1 > 0 and cl > 0):
+        return c0, 0.0, 0.0
+    rho = min((cl / c1) ** (1.0 / (lag - 1)), 1.0 - 1e-9)
+    sc2 = min(c1 / rho, c0)
+    return c0 - sc2, sc2, rho
+
+
+@dataclass(frozen=True)
+class YiNoise:
+    """Identified noise of one pseudo-measurement row (:func:`identify_yi_noise`)."""
+
+    white_var: float  # [m^2/s^2]
+    corr_var: float  # [m^2/s^2] correlated part incl. bias^2, minus the reference derivative's noise
+    rho_step: float  # correlation over one filter step
+    factor: float  # (1 + rho)/(1 - rho)
+    bias: float  # [m/s] mean residual (part of corr_var)
+    sigma: float  # [m/s] fused standard deviation, sqrt(white + corr * factor)
+
+    @property
+    def corr_time(self) -> float:
+        """Correlation time in filter steps (-1/ln rho)."""
+        return -1.0 / math.log(self.rho_step) if 0.0 < self.rho_step < 1.0 else 0.0
+
+
+def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0, lag_time: float = 0.5,
+                      iterations: int = 2, max_factor: float = 1e6) -> tuple[EkfParams, dict[str, Any]]:
+    """Measurement noise of the v_x (13) and v_y (15) rows identified on calibration runs against the
+    reference sensor (never the truth), for the consistent configuration.
+
+    The filter ``model`` is run on each run; the pseudo-measurements it fused (:func:`pseudo_measurements`)
+    are compared with the reference body velocity (:func:`reference_body_velocity`) at the steps with a
+    fresh encoder pair after ``settle`` s.  The residual is split into white + AR(1) with its mean kept
+    (:func:`correlated_noise_fit`, correlation from lags 1 and ``lag_time``); the correlated part
+    (minus the reference derivative's own noise) is fused at the filter rate with the effective-sample
+    factor (1 + rho)/(1 - rho) (capped at ``max_factor``): n correlated samples carry the information
+    of n (1 - rho)/(1 + rho) independent ones.  Repeated ``iterations`` times with the identified noise
+    (slip feedback (13)-(14) depends on the filter's own velocity, so the residual depends on R).
+    sigma_vz (11) is kept (the reference is planar: no v_z reference)."""
+    if not runs:
+        raise ValueError(f"{model.name}: identify_yi_noise needs at least one calibration run")
+    if iterations < 1:
+        raise ValueError(f"{model.name}: identify_yi_noise iterations = {iterations!r}: must be >= 1")
+    params = model.params
+    info: dict[str, Any] = {"calibration_runs": [r.id for r in runs]}
+    for it in range(iterations):
+        res_x: list[np.ndarray] = []
+        res_y: list[np.ndarray] = []
+        ref_var, dts = [], []
+        for run in runs:
+            run.require(model.requires | frozenset(REF_CHANNELS), f"{model.name} (calibration)")
+            r, track = _geometry(run)
+            t, acc, gyr, enc = align_inputs(run)
+            x0, p0 = initial_state(acc, enc, r, params, model.initial_pose)
+            fr = run_filter(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
+                            s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, where=run.where)
+            y_x, y_y = pseudo_measurements(fr.slip, fr.s_icr, fr.yaw_rate, enc, r, model.variant)
+            vx, vy, var = reference_body_velocity(run, t)
+            m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
+            res_x.append(y_x[m] - vx[m])
+            if model.variant == 3:
+                res_y.append(y_y[m] - vy[m])
+            ref_var.append(var)
+            dts.append(float(np.median(np.diff(t))))
+        dt = float(np.median(dts))
+        lag = max(2, int(round(lag_time / dt)))
+        vref = float(np.mean(ref_var))
+        rows: dict[str, YiNoise] = {}
+        for key, res in (("vx", res_x), ("vy", res_y)):
+            if not res:
+                continue
+            white, corr, rho = correlated_noise_fit(res, lag)
+            corr = max(corr - vref, 0.0)
+            factor = min((1.0 + rho) / (1.0 - rho), max_factor) if rho > 0 else 1.0
+            bias = float(np.mean(np.concatenate(res)))
+            rows[key] = YiNoise(white, corr, rho, factor, bias, math.sqrt(max(white + corr * factor, 1e-12)))
+        r0 = _geometry(runs[0])[0]
+        params = replace(params, sigma_enc=rows["vx"].sigma / r0,
+                         sigma_vy=rows["vy"].sigma if "vy" in rows else params.sigma_vy)
+        info[f"iteration{it}"] = {k: asdict(v) | {"corr_time_s": v.corr_time * dt} for k, v in rows.items()}
+    info.update({"sigma_enc": params.sigma_enc, "sigma_1": params.sigma_enc * _geometry(runs[0])[0],
+                 "sigma_vy": params.sigma_vy, "sigma_vz": params.sigma_vz, "reference_velocity_var": vref, "filter_dt": dt})
+    return params, info
+
+
+@dataclass(frozen=True)
+class Yi2009EkfConsistent(Yi2009Ekf):
+    """Yi's EKF scheme 1/2/3 in a consistent configuration (NOT the paper's; issue 4): the same filter
+    (:func:`run_filter`, unchanged) with sigma_1 (v_x row, (13)) and sigma_2 (v_y row, (15)) identified on
+    calibration runs by :func:`identify_yi_noise`; scheme 3 also fits S(gamma) on them as the paper does.
+    Process noise, sigma_3 (v_z, (11)) and the initial covariance are the paper configuration's."""
+
+    calibrated: bool = False
+    noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
+
+    @property
+    def name(self) -> str:
+        return f"yi2009.ekf_v{self.variant}_consistent"
+
+    @property
+    def calibration_requires(self) -> frozenset[str]:
+        return frozenset(REF_CHANNELS)
+
+    def calibrate(self, runs: Sequence[Run]) -> "Yi2009EkfConsistent":
+        m = super().calibrate(runs)
+        params, info = identify_yi_noise(runs, m)
+        return replace(m, params=params, calibrated=True, noise_info=info)
+
+    def estimate(self, run: Run) -> Estimate:
+        if not self.calibrated:
+            raise RunError(run.where, "calibration", "none", f"{self.name} identifies its measurement noise on "
+                           "calibration runs with a reference sensor (ref_x, ref_y, ref_yaw): call calibrate first")
+        est = super().estimate(run)
+        est.info["noise"] = {k: v for k, v in self.noise_info.items() if isinstance(v, (int, float))}
+        return est
+
+
+def ekf_v1_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
+    """Scheme 1 with the measurement noise identified on calibration runs (not the paper's)."""
+    return Yi2009EkfConsistent(variant=1, **kwargs)
+
+
+def ekf_v2_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
+    """Scheme 2 with the measurement noise identified on calibration runs (not the paper's)."""
+    return Yi2009EkfConsistent(variant=2, **kwargs)
+
+
+def ekf_v3_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
+    """Scheme 3 with S(gamma) and the measurement noise identified on calibration runs (not the paper's)."""
+    return Yi2009EkfConsistent(variant=3, **kwargs)
