@@ -564,7 +564,7 @@ def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, qu
         for fut in as_completed(futures):
             res, manifest, stats = fut.result()
             done[futures[fut]] = res
-            log(f"{res.paper}: done in {res.seconds:.1f} s")
+            log(f"{res.paper}: ready (its computation took {res.seconds:.1f} s)")
             if progress:
                 progress(len(done), len(papers))
             for k in ("simulated", "cached"):
