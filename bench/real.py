@@ -167,6 +167,29 @@ def window_chi(w: DriveWindows, wheel_radius: float, track: float, min_turn: flo
     return chi, lam, phi, usable
 
 
+TESTBED_CHI_SCENARIO = "real_husky_asphalt"  # the gap workflow's nominal husky model (bench.real_gap)
+
+
+def testbed_chi(platform_name: str, abs_ratios: Sequence[float], tread_speeds: Sequence[float],
+                duration: float = 6.0, settle: float = 3.0, seed: int = 0) -> list[float]:
+    """The testbed's chi (Wang eq. (25) on its truth, ``bench.sim.validate.chi_eq25``) for steady
+    CCW turns at each curvature ratio, outer tread speed as given; the nominal husky model of the gap
+    workflow (scenario :data:`TESTBED_CHI_SCENARIO`).  NaN for a platform other than that model's."""
+    from bench.sim import simulate
+    from bench.sim.validate import chi_eq25
+    from bench.spec import CommandSpec, Segment, load_scenario
+
+    base = load_scenario(TESTBED_CHI_SCENARIO)
+    if base.platform.name != platform_name:
+        return [math.nan] * len(abs_ratios)
+    out = []
+    for lam, v in zip(abs_ratios, tread_speeds):
+        cmd = CommandSpec(kind="v_curvature_ratio", segments=((Segment(duration, float(v), float(lam))),))
+        run = simulate(dataclasses.replace(base, command=cmd, duration=duration), seed)
+        out.append(chi_eq25(run.data, base.platform, settle))
+    return out
+
+
 def wang_chi(lam: np.ndarray, a: float, b: float) -> np.ndarray:
     """Wang 2015 eq. (44): chi = 1 + a / (1 + b sqrt|curvature_ratio|); 1 on a straight line
     (|ratio| = inf); 1 + a when undefined (both treads stopped, where wz = 0 anyway)."""
@@ -641,6 +664,17 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     # measured chi (all usable steady windows) and two independent checks of the time base
     chi, lam, phi, usable = window_chi(w, r, B)
     bins = chi_by_bin(chi[usable], lam[usable])
+    # the testbed's chi beside it: same |curvature ratio| (bin median) and outer tread speed (bin median)
+    vl, vr = tread_speeds(w, r)
+    outer = np.max(np.abs(np.column_stack((vl.mean(axis=1), vr.mean(axis=1)))), axis=1)[usable]
+    a_lam = np.abs(lam[usable])
+    full = [b for b in bins if b["n"] > 0]
+    speeds = [float(np.clip(np.median(outer[(a_lam >= b["lo"]) & (a_lam < b["hi"])]), 0.1, 1.5)) for b in full]
+    for b, c in zip(full, testbed_chi(name, [b["median_abs_ratio"] for b in full], speeds)):
+        b["testbed"], b["testbed_speed"] = c, float(speeds[full.index(b)])
+    for b in bins:
+        b.setdefault("testbed", math.nan)
+        b.setdefault("testbed_speed", math.nan)
     rate_icp = phi / (w.dt * (w.n_samples - 1))
     checks: dict[str, float] = {}
     if w.has("imu_gz"):
@@ -705,10 +739,12 @@ def _write_csv(out: Mapping[str, Any], path: Path) -> Path:
 
 
 def _write_chi_csv(out: Mapping[str, Any], path: Path) -> Path:
-    lines = ["abs_ratio_lo,abs_ratio_hi,n,chi_median,chi_q25,chi_q75,median_abs_ratio,wang_p3at_chi"]
+    lines = ["abs_ratio_lo,abs_ratio_hi,n,chi_median,chi_q25,chi_q75,median_abs_ratio,wang_p3at_chi,testbed_chi,"
+             "testbed_tread_speed"]
     for b in out["chi"]["bins"]:
         lines.append(",".join(f"{b[k]:.6f}" if isinstance(b[k], float) else str(b[k])
-                              for k in ("lo", "hi", "n", "median", "q25", "q75", "median_abs_ratio", "wang_p3at")))
+                              for k in ("lo", "hi", "n", "median", "q25", "q75", "median_abs_ratio", "wang_p3at",
+                                        "testbed", "testbed_speed")))
     return _atomic_write_text(path, "\n".join(lines) + "\n")
 
 
@@ -842,14 +878,25 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
     add(f"chi = (S_r - S_l) / (phi B) per window (Wang 2015 eq. (25)/(42); S_i = r * sum(w_i dt), phi = ICP yaw "
         f"change over the same samples). {c['n']} windows: median {_fmt(c['median'])}, interquartile "
         f"{_fmt(c['q25'])}-{_fmt(c['q75'])}. Wang's P3-AT curve (eq. (45), published: a = 0.4728, b = 0.0538) is "
-        "evaluated at each bin's median |ratio|.\n")
-    add("| abs(curvature ratio) bin | n | chi median | chi IQR | median abs(ratio) | Wang P3-AT eq. (45) |")
-    add("|---|---:|---:|---|---:|---:|")
+        "evaluated at each bin's median |ratio|. The testbed column is the testbed's own chi for this platform "
+        f"(scenario `{TESTBED_CHI_SCENARIO}`: asphalt, the gap workflow's nominal model): a steady CCW turn at the "
+        "bin's median |ratio| and median outer tread speed, Wang eq. (25) on the testbed's truth after 3 s.\n")
+    add("| abs(curvature ratio) bin | n | chi median | chi IQR | median abs(ratio) | testbed (outer tread speed) | "
+        "Wang P3-AT eq. (45) |")
+    add("|---|---:|---:|---|---:|---:|---:|")
     for b in c["bins"]:
         hi = "inf" if not np.isfinite(b["hi"]) else f"{b['hi']:g}"
+        tb = f"{_fmt(b['testbed'])} ({_fmt(b['testbed_speed'], 2)} m/s)" if np.isfinite(b["testbed"]) else "n/a"
         add(f"| [{b['lo']:g}, {hi}) | {b['n']} | {_fmt(b['median'])} | {_fmt(b['q25'])}-{_fmt(b['q75'])} | "
-            f"{_fmt(b['median_abs_ratio'], 2)} | {_fmt(b['wang_p3at'])} |")
+            f"{_fmt(b['median_abs_ratio'], 2)} | {tb} | {_fmt(b['wang_p3at'])} |")
     add("")
+    tb_bins = [b for b in c["bins"] if b["n"] > 0 and np.isfinite(b["testbed"])]
+    if len(tb_bins) >= 2:
+        lo, hi = tb_bins[0], tb_bins[-1]
+        level = np.median([b["testbed"] / b["median"] for b in tb_bins])
+        add(f"From the first to the last bin the measured chi goes {_fmt(lo['median'])} -> {_fmt(hi['median'])} and "
+            f"the testbed's {_fmt(lo['testbed'])} -> {_fmt(hi['testbed'])}; the testbed's level is "
+            f"{100 * (1 - level):.0f} % below the measured one (median over bins of testbed / measured).\n")
     if figures:
         add(f"Figures: [`{name}_chi.png`]({name}_chi.png) (chi vs curvature ratio), "
             f"[`{name}_errors.png`]({name}_errors.png) (error CDFs, steady and transitory), "

@@ -358,3 +358,19 @@ def test_full_husky_benchmark(husky_df: pd.DataFrame, tmp_path: Path) -> None:
         assert f"`{yi}` uses" in md and f"it {word}" in md.split(f"`{yi}` uses")[1].split("\n")[0]
     assert f"{meds[best]:.3f} m" in md and f"{meds['ideal_dd']:.3f} m" in md
     assert ("**Not met**" in md) == (not v["passed"])
+
+
+def test_testbed_chi_of_the_husky_model_matches_the_closed_form_at_pure_rotation():
+    """Coulomb/point-contact anchor chi = 1 + (a/b)^2 (a = wheelbase/2, b = track/2) for the husky
+    model near pure rotation (the J-H patch law stays within a few %); NaN for another platform."""
+    import math
+
+    from bench.real import testbed_chi
+    from bench.spec import load_platform
+
+    h = load_platform("husky")
+    closed = 1.0 + (h.wheelbase / h.track) ** 2
+    chi0, chi8 = testbed_chi("husky", [0.0, 8.0], [0.5, 0.5])
+    assert chi0 == pytest.approx(closed, rel=0.05)
+    assert chi8 < chi0  # Wang's decreasing trend
+    assert all(math.isnan(c) for c in testbed_chi("p3at_solid", [0.0], [0.5]))
