@@ -118,7 +118,8 @@ def _league_runs(runner: Runner, sname: str, quick: bool, n_seeds: int) -> tuple
 
 @functools.lru_cache(maxsize=2)
 def _cached_runs(sname: str, quick: bool, n_seeds: int, cache_dir: str) -> tuple[list, list]:
-    """Per worker process: the runs of the scenario it scored last (jobs of one scenario run together)."""
+    """Per worker process: the runs of the last two scenarios it scored (jobs are ordered by cost, so a
+    worker may come back to a scenario: then the runs are read from the run cache again)."""
     return _league_runs(Runner(cache_dir=Path(cache_dir), workers=1), sname, quick, n_seeds)
 
 

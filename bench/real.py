@@ -390,6 +390,9 @@ def s_of_gamma(gamma: np.ndarray, a1: float, a2: float, a3: float) -> np.ndarray
     return np.where(np.isnan(g), a1 / a3, s)
 
 
+MIN_S_POINTS_PER_DIRECTION = 10  # S(gamma) points per travel direction needed to fit x_M as well
+
+
 @dataclass(frozen=True)
 class YiSGamma(_Kinematic):
     """Yi 2009 kinematics (Sec. III-A, III-C, V-B) as a window model (Yi's EKF itself cannot run on
@@ -405,8 +408,12 @@ class YiSGamma(_Kinematic):
     * ``yaw_rate="gyro"``: psi_dot is the measured gyro z rate (``imu_gz``; eq. (10e) with roll and
       pitch taken as 0: they are not measured), the turning slips are symmetric (y_l = -y_r, eq. (8)),
       so eq. (13) gives ``v_Gx = (1-lambda_0) r (w_L + w_R)/2`` -- inputs: wheel speeds + gyro.
-    * Lateral: eq. (15) ``v_By = (x_M - S) psi_dot`` with x_M = 0 and S(gamma) of eq. (41),
-      gamma of eq. (40) from the model's tread speeds: ``gamma = -W psi_dot / (2 v_Gx)``.
+    * Lateral: eq. (15) ``v_By = (x_M - S) psi_dot`` with S(gamma) of eq. (41), gamma of eq. (40) from
+      the model's tread speeds: ``gamma = -W psi_dot / (2 v_Gx)``.  Yi's runs are all forward; the
+      ICR's longitudinal offset S is the slip's response to the centripetal load and reverses with the
+      direction of travel, so here ``S = sign(v_Gx) S(|gamma|)``.  ``x_M`` (eq. (15): the
+      longitudinal position of the measured point, here the ICP frame's origin) is fitted when the
+      calibration windows drive both ways (otherwise 0, as for Yi's IMU at the centre).
 
     Fitting (calibration windows only): S(gamma) as Yi does (Sec. V-B): eq. (41) fitted by nonlinear
     least squares (:func:`methods.yi2009.fit_s_gamma`, a3 held at the published 0.039, only a1/a3
@@ -426,6 +433,7 @@ class YiSGamma(_Kinematic):
     a1: float = 0.02148  # published S(gamma), Sec. V-B (a1 = 2.148 cm)
     a2: float = 0.249
     a3: float = 0.039
+    x_m: float = 0.0  # eq. (15) x_M [m]
     min_turn: float = MIN_TURN
     name: str = "yi2009_s_gamma"
     label: str = "Yi S(gamma) (eqs. (6), (8), (13), (15), (40), (41)); wheel speeds"
@@ -448,9 +456,27 @@ class YiSGamma(_Kinematic):
         gam, s, usable = yi_s_points(calib, self.track, self.min_turn)
         if np.unique(np.abs(gam[usable])).size < 2:
             return dataclasses.replace(self, n_fit=int(usable.sum()))  # too few points: published curve kept
-        fit = fit_s_gamma(gam[usable], s[usable], a3=self.a3)
-        sg = fit.s_gamma
-        return dataclasses.replace(self, a1=sg.a1, a2=sg.a2, a3=sg.a3, n_fit=fit.n_points, s_fit_rms=fit.residual_rms)
+        u = window_twist(calib)[0]
+        fwd = usable & (u > 0)
+        bwd = usable & (u < 0)
+        if min(fwd.sum(), bwd.sum()) < MIN_S_POINTS_PER_DIRECTION:  # one direction (Yi's case): x_M = 0
+            fit = fit_s_gamma(gam[usable] * np.sign(u[usable]), s[usable] * np.sign(u[usable]), a3=self.a3)
+            sg = fit.s_gamma
+            return dataclasses.replace(self, a1=sg.a1, a2=sg.a2, a3=sg.a3, x_m=0.0, n_fit=fit.n_points,
+                                       s_fit_rms=fit.residual_rms)
+        # both directions: the measured -v_By/psi_dot = sign(u) S(|gamma|) - x_M (eq. (15)), a3 held
+        g, sg_, sm = np.abs(gam[usable]), np.sign(u[usable]), s[usable]
+        start = fit_s_gamma(gam[fwd], s[fwd], a3=self.a3).s_gamma
+
+        def resid(q: np.ndarray) -> np.ndarray:
+            return sg_ * q[1] / (q[2] * g + self.a3) - q[0] - sm
+
+        lo, hi = np.array([-5.0, -5.0, 0.0]), np.array([5.0, 5.0, 1e3])
+        q0 = np.clip([0.0, start.a1, start.a2], lo + 1e-9, hi - 1e-9)
+        sol = least_squares(resid, q0, bounds=(lo, hi))
+        r = resid(sol.x)
+        return dataclasses.replace(self, x_m=float(sol.x[0]), a1=float(sol.x[1]), a2=float(sol.x[2]),
+                                   n_fit=int(usable.sum()), s_fit_rms=float(np.sqrt(np.mean(r * r))))
 
     def fit(self, calib: DriveWindows) -> "YiSGamma":
         m = self._s_fit(calib)
@@ -471,13 +497,13 @@ class YiSGamma(_Kinematic):
             vx, _, wz = icr_forward(k * v_l, k * v_r, self.y_l, self.y_r, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             gam = -self.track * wz / (2.0 * vx)
-        return vx, -s_of_gamma(gam, self.a1, self.a2, self.a3) * wz, wz
+        return vx, (self.x_m - np.sign(vx) * s_of_gamma(gam, self.a1, self.a2, self.a3)) * wz, wz
 
     def params(self) -> dict[str, float]:
         out = {"lambda_0": self.slip}
         if self.yaw_rate == "wheels":
             out.update({"y_lc": self.y_l, "y_rc": self.y_r, "chi": (self.y_l - self.y_r) / self.track})
-        out.update({"a1_cm": 100.0 * self.a1, "a2": self.a2, "a3": self.a3, "S(0)": self.a1 / self.a3,
+        out.update({"a1_cm": 100.0 * self.a1, "a2": self.a2, "a3": self.a3, "S(0)": self.a1 / self.a3, "x_M": self.x_m,
                     "n_S_points": float(self.n_fit), "S_fit_rms": self.s_fit_rms})
         return out
 
@@ -896,7 +922,8 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
         level = np.median([b["testbed"] / b["median"] for b in tb_bins])
         add(f"From the first to the last bin the measured chi goes {_fmt(lo['median'])} -> {_fmt(hi['median'])} and "
             f"the testbed's {_fmt(lo['testbed'])} -> {_fmt(hi['testbed'])}; the testbed's level is "
-            f"{100 * (1 - level):.0f} % below the measured one (median over bins of testbed / measured).\n")
+            f"{100 * abs(1 - level):.0f} % {'below' if level < 1 else 'above'} the measured one (median over bins of "
+            "testbed / measured).\n")
     if figures:
         add(f"Figures: [`{name}_chi.png`]({name}_chi.png) (chi vs curvature ratio), "
             f"[`{name}_errors.png`]({name}_errors.png) (error CDFs, steady and transitory), "
@@ -948,8 +975,9 @@ def _yi_sentences(out: Mapping[str, Any]) -> list[str]:
                      f"beats (by {-d_mm:.0f} mm)" if d_mm < 0 else f"does not beat ({d_mm:.0f} mm worse than)")
         lines.append(
             f"- `{name}` uses {what}; S(gamma) fitted on {int(p['n_S_points'])} steady turning calibration windows "
-            f"(S(0) = a1/a3 = {_fmt(p['S(0)'])} m, a2/a3 = {_fmt(p['a2'] / p['a3'])}, point scatter "
-            f"{_fmt(p['S_fit_rms'])} m RMS), common traction slip lambda_0 = {_fmt(p['lambda_0'])}. Median test "
+            f"(S(0) = a1/a3 = {_fmt(p['S(0)'])} m, a2/a3 = {_fmt(p['a2'] / p['a3'])}, S reversing with the travel "
+            f"direction, x_M = {_fmt(p['x_M'])} m, point scatter {_fmt(p['S_fit_rms'])} m RMS), common traction slip "
+            f"lambda_0 = {_fmt(p['lambda_0'])}. Median test "
             f"error {_fmt(t, 4)} m / {_fmt(y)} rad: it {verdict_t} the best ICR-family model `{best}` "
             f"({_fmt(bt, 4)} m / {_fmt(by)} rad) in translation and is "
             f"{'better' if y < by else 'not better'} in yaw.")

@@ -52,6 +52,7 @@ import numpy as np
 from bench.drive import DriveWindows, import_drive_windows, resolve_platform, windows_to_runs
 from bench.gap import GapResult, Thresholds, find_gap
 from bench.gap.catalogue import CATALOGUE, Effect, ModelConfig, get, nominal_config
+from bench.gap.report import uncertainty_text
 from bench.gap.fit import Evaluator
 from bench.gap.model import measured_grid, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
@@ -374,7 +375,8 @@ def _markdown(doc: Mapping[str, Any], figure: bool) -> str:
         add("|---|---|---:|---:|---:|---|")
         for e in rows:
             for k, v in e["parameters"].items():
-                add(f"| {e['name']} | {k} [{e['units'].get(k, '')}] | {_g(v, 5)} | {_g(e['uncertainty'].get(k), 2)} | "
+                se = uncertainty_text(e["name"], k, v, e["uncertainty"].get(k))
+                add(f"| {e['name']} | {k} [{e['units'].get(k, '')}] | {_g(v, 5)} | {se} | "
                     f"{_g(e['nominal'].get(k))} | {', '.join(_g(x) for x in e['fold_estimates'].get(k, []))} |")
         add("")
     if not wf["effects"] and not wf["partial_candidates"]:
@@ -456,8 +458,8 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
                + f"the verdict on the fit block is \"{wf['verdict_kind'].replace('_', ' ')}\".")
     f = doc["data_facts"]
     if f["max_abs_cmd_wheel_speed"] > 1.2 * f["max_abs_enc_wheel_speed"]:
-        out.append(f"- The measured wheel speeds saturate ({f['max_abs_enc_wheel_speed']:.2f} rad/s at most) below the "
-                   f"commands ({f['max_abs_cmd_wheel_speed']:.2f} rad/s).")
+        out.append(f"- The measured wheel speeds never exceed {f['max_abs_enc_wheel_speed']:.2f} rad/s while the commands "
+                   f"reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s.")
     if "slope_sum" in f:
         out.append(
             f"- The wheels do not track the logged commands, which is what the replay assumes: on the "
@@ -470,7 +472,8 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
             + ". The robot's own velocity controller sits between the logged command and the wheels; the "
             "catalogue models it with command_map (gains on the commanded mean and half-difference) and "
             "command_limit (clipping of both), added after the first run of this workflow on these data named "
-            "nothing; "
+            "nothing (that diagnosis, these slopes, uses all steady windows, the test half included, so the held-out "
+            "improvement below is not fully independent of the held-out steps); "
             + (f"kept here: {', '.join(k for k in kept if k.startswith('command_'))}."
                if any(k.startswith("command_") for k in kept) else "neither was kept here.")
             + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "

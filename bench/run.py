@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import tempfile
 from dataclasses import dataclass, field
@@ -189,3 +190,16 @@ def from_arrays(columns: Mapping[str, np.ndarray], meta: Mapping[str, Any] | Non
 def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
     """Wrap to [-pi, pi)."""
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+def reference_position_noise(run: Run) -> float:
+    """Standard deviation [m] of the run's reference-sensor position (``meta.platform.sensors.reference.
+    pos_noise``), which noise identifications subtract from their residuals.  A run without it (e.g. an
+    imported log whose mapping gives none) is an error, not a silently perfect reference."""
+    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference") if isinstance(run.meta, Mapping) else None
+    sig = ref.get("pos_noise") if isinstance(ref, Mapping) else None
+    if not isinstance(sig, (int, float)) or isinstance(sig, bool) or not math.isfinite(sig) or sig < 0:
+        raise RunError(run.where, "meta platform.sensors.reference.pos_noise", sig,
+                       "the reference sensor's position noise [m] (finite, >= 0) is needed to identify noise "
+                       "against it; give it in the platform spec or the import mapping")
+    return float(sig)

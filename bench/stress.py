@@ -362,7 +362,9 @@ def stress_markdown(rows: Sequence[Mapping[str, Any]], s: StressSettings) -> str
         "`paper`: the ICR recomputed after every update, as written.",
         f"* Liu `consistent`: `methods.liu2020.UkfIcrConsistent` / `MiUkfConsistent` (no encoder pose pseudo-measurement, "
         f"GNSS bias states, noise identified on {s.calib_scenario} seed {s.calib_seed}; see results/liu2020/"
-        "nees_consistency.md); its covariance grows honestly during the outage, so the returning GNSS pulls it back.",
+        "nees_consistency.md); its position covariance grows through the outage, so the returning GNSS fixes pull the "
+        "estimate back (UKF+ICR's covariance covers its outage error; MI-UKF's does not: the multi-innovation "
+        "correction is not in its covariance update, see tests/test_stress.py).",
         "* Yi 2009: no absolute position sensor, so the position error grows and **recovery is not defined**; "
         "the column *speed offset* gives max |v_x(faulted) - v_x(fault-free)| over 10-30 s after the fault "
         "(v_x is observed by the encoders).",

@@ -124,7 +124,7 @@ import numpy as np
 
 from bench.kinematics import icr_forward, integrate_se2
 from bench.registry import Estimate, make_estimate
-from bench.run import Run, RunError
+from bench.run import Run, RunError, reference_position_noise
 from bench.ukf import FilterError, SigmaParams, Ukf, mi_weights
 
 PAPER = "Liu et al. 2020"
@@ -748,8 +748,7 @@ def identify_noise(runs: Sequence[Run], base: LiuUkfParams, name: str = "liu2020
             raise RunError(run.where, "gnss_x/ref_x", int(m.sum()), "too few joint GNSS/reference samples (need 20)")
         ts.append(run.t[m] - run.t[0])
         es.append(np.column_stack((gx[m] - rx[m], gy[m] - ry[m])))
-        ref = run.meta.get("platform", {}).get("sensors", {}).get("reference", {})
-        ref_var.append(float(ref.get("pos_noise", 0.0)) ** 2 if isinstance(ref, Mapping) else 0.0)
+        ref_var.append(reference_position_noise(run) ** 2)
 
     def fit(tau: float) -> tuple[float, list[np.ndarray], list[np.ndarray]]:
         sse, amps, resid = 0.0, [], []

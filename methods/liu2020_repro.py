@@ -74,7 +74,7 @@ from bench.registry import Estimate
 from bench.report.io import atomic_savefig, atomic_write_text
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
-from bench.ukf import nees as nees_values
+from bench.ukf import NEES_MIN_STEP_FRACTION, nees as nees_values
 from bench.ukf import wrap
 
 __all__ = ["table2", "table2_gnss", "motion", "icr", "heading", "nees", "outage", "Settings", "mean_ci", "nees_band",
@@ -581,10 +581,15 @@ def nees(ctx: Any) -> dict[str, float]:
         lines += ["", "Noise identified on the calibration run (consistent configuration):", ""]
         lines += [f"* {key} = {val:.4g}" for key, val in noise.items() if isinstance(val, float)]
     for tag, fs in (("paper", FILTERS), ("consistent", tuple(CONSISTENT))):
-        ok6 = all(b6[0] <= out[f"{k}.{f}.nees"] <= b6[1] for k in ev.scenarios for f in fs)
-        ok3 = all(b3[0] <= out[f"{k}.{f}.nees_pose"] <= b3[1] for k in ev.scenarios for f in fs)
+        # the test (bench.ukf.NEES_MIN_STEP_FRACTION): seed-averaged NEES in band at >= 90% of the steps
+        ok6 = all(out[f"{k}.{f}.in_band"] >= NEES_MIN_STEP_FRACTION for k in ev.scenarios for f in fs)
+        ok3 = all(out[f"{k}.{f}.pose_in_band"] >= NEES_MIN_STEP_FRACTION for k in ev.scenarios for f in fs)
         out[f"{tag}_in_band"] = float(ok6 and ok3)
         out[f"{tag}_nees_in_band"], out[f"{tag}_pose_in_band"] = float(ok6), float(ok3)
+        # reported only: the time mean inside the single-step band (a weaker test)
+        out[f"{tag}_mean_in_band"] = float(
+            all(b6[0] <= out[f"{k}.{f}.nees"] <= b6[1] for k in ev.scenarios for f in fs)
+            and all(b3[0] <= out[f"{k}.{f}.nees_pose"] <= b3[1] for k in ev.scenarios for f in fs))
     for key, val in noise.items():
         if isinstance(val, float):
             out[f"noise.{key}"] = val
@@ -603,7 +608,21 @@ def nees(ctx: Any) -> dict[str, float]:
         + ", ".join(f"{out[f'{k}.ukf_icr.pos_sd']:.3f}" for k in ev.scenarios) + " m (UKF+ICR). See nees_consistency.md."))
     ctx.note("nees", paper_note)
     ctx.note("nees_paper", paper_note)
-    ctx.note("nees_consistent", (
+    below = {f"{k}.{f}": 1.0 - out[f"{k}.{f}.in_band"] - out[f"{k}.{f}.above"] for k in ev.scenarios for f in CONSISTENT}
+    step_note = (
+        f"Fraction of steps with the seed-averaged NEES in the band (pass: >= {NEES_MIN_STEP_FRACTION:.0%} of the steps; "
+        "95% expected for a consistent filter), 6-state: " + ", ".join(
+            f"{k} {out[f'{k}.ukf_icr_c.in_band']:.0%} / {out[f'{k}.mi_ukf_c.in_band']:.0%}" for k in ev.scenarios)
+        + "; below the band (underconfident): " + ", ".join(
+            f"{k} {below[f'{k}.ukf_icr_c']:.0%} / {below[f'{k}.mi_ukf_c']:.0%}" for k in ev.scenarios)
+        + "; pose block in band: " + ", ".join(
+            f"{k} {out[f'{k}.ukf_icr_c.pose_in_band']:.0%} / {out[f'{k}.mi_ukf_c.pose_in_band']:.0%}" for k in ev.scenarios)
+        + f". Per block (s2 UKF+ICR): position {out['s2.ukf_icr_c.nees_pos']:.2f}, heading "
+        f"{out['s2.ukf_icr_c.nees_yaw']:.2f}, velocity {out['s2.ukf_icr_c.nees_vel']:.2f}, yaw rate "
+        f"{out['s2.ukf_icr_c.nees_wz']:.2f} (consistent: 2, 1, 2, 1): the heading and velocity blocks are too cautious "
+        "(their process noise is the repository's, not identified). ")
+    ctx.note("nees_consistent_pose", step_note)
+    ctx.note("nees_consistent", step_note + (
         "Consistent configuration (noise from the calibration run only): mean 6-state NEES " + ", ".join(
             f"{k} {out[f'{k}.ukf_icr_c.nees']:.2f} / {out[f'{k}.mi_ukf_c.nees']:.2f}" for k in ev.scenarios)
         + f" (UKF+ICR / MI-UKF, band [{b6[0]:.2f}, {b6[1]:.2f}]); pose NEES " + ", ".join(
@@ -674,7 +693,11 @@ def outage(ctx: Any) -> dict[str, float]:
         + " m (paper: " + ", ".join(f"{out[f'{m}.err_final']:.3f}" for m in FILTERS)
         + " m); pose NEES during the outage " + ", ".join(f"{out[f'{m}.nees_pose_outage']:.2f}" for m in CONSISTENT)
         + ", after it " + ", ".join(f"{out[f'{m}.nees_pose_after']:.1f}" for m in CONSISTENT)
-        + ": the position covariance grows with the dead-reckoning error, so the returning GNSS pulls the estimate back."))
+        + f" (band [{b3[0]:.2f}, {b3[1]:.2f}]): "
+        + "; ".join(f"{LABELS[m]} " + ("too cautious during the outage" if out[f"{m}.nees_pose_outage"] < b3[0] else
+                                         "overconfident during the outage" if out[f"{m}.nees_pose_outage"] > b3[1] else
+                                         "consistent during the outage") for m in CONSISTENT)
+        + "; its position covariance grows through the outage, so the returning GNSS fixes pull the estimate back."))
     path = ctx.out_dir / "liu2020_outage.png"
     _outage_figure(path, ev, b3)
     ctx.figure(path, "20 s GNSS outage (scenario 2): position error and pose NEES per filter (paper and consistent configurations)")

@@ -110,7 +110,7 @@ from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
 from bench.registry import Estimate, make_estimate
-from bench.run import Run, RunError
+from bench.run import Run, RunError, reference_position_noise
 
 PAPER = "Yi et al. 2009, IEEE T-RO 25(5):1087-1097"
 IMU_CHANNELS = ("imu_ax", "imu_ay", "imu_az", "imu_gx", "imu_gy", "imu_gz")
@@ -741,9 +741,7 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     gain = (np.sin(np.outer(w, tk)) @ coef) / w
     c, s = np.cos(psi), np.sin(psi)
     vx, vy = (c * xd + s * yd) / gain, (-s * xd + c * yd) / gain
-    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference", {})
-    sig = float(ref.get("pos_noise", 0.0)) if isinstance(ref, Mapping) else 0.0
-    var = sig**2 * float(np.sum(coef**2))
+    var = reference_position_noise(run) ** 2 * float(np.sum(coef**2))
     inside = (t >= tg[0]) & (t <= tg[-1])
     return (np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan), var)
 

@@ -434,3 +434,18 @@ if __name__ == "__main__":  # print every case's message (for reports)
                 print(f"{case}: NO ERROR")
             except (RunError, SpecError) as e:
                 print(f"{case}:\n    {type(e).__name__}: {str(e).replace(d, '<tmp>')}")
+
+
+def test_noise_identification_needs_the_reference_noise_in_the_meta() -> None:
+    """A run whose meta gives no reference position noise is an error naming the key (the noise
+    identifications of the consistent filters subtract it), not a silently perfect reference."""
+    import numpy as np
+
+    from bench.run import RunError, from_arrays, reference_position_noise
+
+    run = from_arrays({"t": np.arange(3) * 0.1}, {"run_id": "imported"})
+    with pytest.raises(RunError) as ei:
+        reference_position_noise(run)
+    assert "platform.sensors.reference.pos_noise" in str(ei.value) and "imported" in str(ei.value)
+    ok = from_arrays({"t": np.arange(3) * 0.1}, {"platform": {"sensors": {"reference": {"pos_noise": 0.003}}}})
+    assert reference_position_noise(ok) == 0.003

@@ -127,3 +127,20 @@ def test_effect_outside_the_catalogue_ends_in_unexplained_residual(sim):
     assert res.verdict_kind == "unexplained_residual", res.verdict
     assert res.effects == []  # no wrong name
     assert res.verdict.startswith("unexplained residual:") and "largest in regime" in res.verdict
+
+
+def test_a_limit_that_never_binds_is_reported_not_identified(sim):
+    """Only the turn limit is hidden (the mean speed stays far below any mean limit): the fitted
+    limit_mean has no effect on the residuals (zero Jacobian column), so its standard error is
+    infinite ("not identified"), while limit_diff is fitted with a finite one."""
+    from bench.gap.report import uncertainty_text
+
+    measured = _measured(sim, COUL, 114, {"platform.command_limit_diff": 1.2})
+    res = find_gap(measured, COUL, catalogue=[get("command_limit")])
+    e = (res.effects + res.partial)[0]
+    assert e["name"] == "command_limit" and e["parameters"]["limit_diff"] == pytest.approx(1.2, rel=0.05)
+    assert math.isfinite(e["uncertainty"]["limit_diff"])
+    assert e["parameters"]["limit_mean"] > 5.2  # above every commanded mean of the scenario (5.12 rad/s)
+    assert math.isinf(e["uncertainty"]["limit_mean"])
+    assert uncertainty_text("command_limit", "limit_mean", e["parameters"]["limit_mean"],
+                            e["uncertainty"]["limit_mean"]).startswith("not identified")

@@ -165,11 +165,16 @@ def test_nees_paper_and_consistent_side_by_side(repro):
     n = len(L.SETTINGS.seeds_quick)
     b6, b3 = L.nees_band(n, 6), L.nees_band(n, 3)
     for tag, fs in (("paper", L.FILTERS), ("consistent", tuple(L.CONSISTENT))):
-        ok6 = all(b6[0] <= m[f"nees.{k}.{f}.nees"] <= b6[1] for k in L.SCENARIOS for f in fs)
-        ok3 = all(b3[0] <= m[f"nees.{k}.{f}.nees_pose"] <= b3[1] for k in L.SCENARIOS for f in fs)
+        ok6 = all(m[f"nees.{k}.{f}.in_band"] >= 0.9 for k in L.SCENARIOS for f in fs)  # Bar-Shalom per-step test
+        ok3 = all(m[f"nees.{k}.{f}.pose_in_band"] >= 0.9 for k in L.SCENARIOS for f in fs)
         assert m[f"nees.{tag}_in_band"] == float(ok6 and ok3), tag
+        assert m[f"nees.{tag}_pose_in_band"] == float(ok3), tag
+        mean_ok = (all(b6[0] <= m[f"nees.{k}.{f}.nees"] <= b6[1] for k in L.SCENARIOS for f in fs)
+                   and all(b3[0] <= m[f"nees.{k}.{f}.nees_pose"] <= b3[1] for k in L.SCENARIOS for f in fs))
+        assert m[f"nees.{tag}_mean_in_band"] == float(mean_ok), tag
     claims = {c["id"]: c for c in res.claims}
     assert claims["nees_consistent"]["holds"] is (m["nees.consistent_in_band"] == 1.0)
+    assert claims["nees_consistent_pose"]["holds"] is (m["nees.consistent_pose_in_band"] == 1.0)
     assert claims["nees_paper"]["holds"] is (m["nees.paper_in_band"] == 1.0)
     text = (out / "nees_consistency.md").read_text()
     assert "| s2 | UKF+ICR (consistent) |" in text and "| s2 | MI-UKF |" in text

@@ -374,3 +374,21 @@ def test_testbed_chi_of_the_husky_model_matches_the_closed_form_at_pure_rotation
     assert chi0 == pytest.approx(closed, rel=0.05)
     assert chi8 < chi0  # Wang's decreasing trend
     assert all(math.isnan(c) for c in testbed_chi("p3at_solid", [0.0], [0.5]))
+
+
+def test_yi_s_gamma_reverses_with_travel_direction_and_fits_x_m() -> None:
+    """Forward and backward windows from eq. (15) with S = sign(v_Gx) S(|gamma|) and x_M = 0.08 m: the
+    fit separates x_M from S(gamma) (two directions make it identifiable) and recovers both."""
+    rng = np.random.default_rng(12)
+    n = 80
+    sign = np.where(np.arange(n) % 2 == 0, 1.0, -1.0)[:, None]
+    wl = np.repeat(rng.uniform(0.5, 6, (n, 1)), N, axis=1) * sign
+    wr = np.repeat(rng.uniform(0.5, 6, (n, 1)), N, axis=1) * sign
+    truth = YiSGamma(R, B, slip=0.1, y_l=0.6, y_r=-0.6, a1=0.004, a2=0.05, a3=0.039, x_m=0.08)
+    w = with_reference(make_windows(wl, wr), truth, rng)
+    fit = YiSGamma(R, B).fit(w)
+    assert (fit.x_m, fit.a1, fit.a2) == pytest.approx((0.08, 0.004, 0.05), abs=1e-6)
+    vx, vy, wz = truth.velocities(w)
+    back = vx[:, 0] < 0
+    s_fwd = 0.004 / (0.05 * np.abs(-B * wz[:, 0] / (2 * vx[:, 0])) + 0.039)
+    np.testing.assert_allclose(vy[:, 0], np.where(back, 0.08 + s_fwd, 0.08 - s_fwd) * wz[:, 0], atol=1e-12)

@@ -186,7 +186,8 @@ def test_claim_naming_an_undeclared_table_is_rejected(paper_dir):
 
 
 def test_parallel_papers_write_the_same_bytes_as_serial(paper_dir, tmp_path):
-    """``workers > 1`` runs the papers as jobs in a process pool: same metrics, tables and manifest."""
+    """``workers > 1`` runs the papers as jobs in a process pool: same metrics, tables and manifest.
+    (The monkeypatched PAPERS_DIR reaches the workers because Linux forks them: Python 3.11's default.)"""
     (paper_dir / "fake2.toml").write_text(PAPER.replace('paper = "fake"', 'paper = "fake2"'))
     out = {}
     for workers in (1, 2):

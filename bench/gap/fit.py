@@ -49,6 +49,7 @@ from bench.spec import Scenario
 REFINE_MAX_NFEV = 8
 XTOL = 1e-3  # least_squares tolerances: parameters to ~0.1% of a probe step
 FTOL = 1e-5
+NULL_EIGEN_RTOL = 1e-10  # eigenvalue of J'J below this x the largest: direction not determined by the data
 FD_FRACTION = 0.1  # finite-difference step = this x probe step (central differences)
 
 
@@ -394,8 +395,15 @@ def _result(ev: Evaluator, layout: Layout, u: np.ndarray, z: np.ndarray, J: np.n
     if p:
         chi2 = float(e @ e) / max(m - p, 1)
         try:
-            cov = np.linalg.pinv(Je.T @ Je) * max(1.0, chi2)
+            info = Je.T @ Je
+            cov = np.linalg.pinv(info) * max(1.0, chi2)
             se_u = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+            # a parameter the data do not determine (e.g. a limit that never binds: its Jacobian column
+            # is zero) sits in the null space of J'J, where pinv gives 0: its standard error is infinite
+            eig_w, eig_v = np.linalg.eigh(info)
+            null = eig_w <= NULL_EIGEN_RTOL * max(float(eig_w.max()), np.finfo(float).tiny)
+            if null.any():
+                se_u[np.any(np.abs(eig_v[:, null]) > 0.1, axis=1)] = np.inf
         except np.linalg.LinAlgError:
             pass
     # linearised two-fold cross-validation, around the linearised optimum: where the optimiser

@@ -16,6 +16,23 @@ if TYPE_CHECKING:  # pragma: no cover
     from bench.gap import GapResult
 
 
+def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
+    """The std. error cell: "not identified" when the data do not determine the parameter (infinite
+    standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
+    from bench.gap.catalogue import get
+
+    if stderr is not None and math.isinf(stderr):
+        txt = "not identified"
+    else:
+        txt = "n/a" if stderr is None or not math.isfinite(stderr) else f"{stderr:.{digits}g}"
+    prm = {p.name: p for p in get(effect).params}.get(param)
+    if prm is not None and math.isfinite(value):
+        tol = 1e-6 * (prm.upper - prm.lower)
+        if value <= prm.lower + tol or value >= prm.upper - tol:
+            txt += f" (at bound {prm.lower if value <= prm.lower + tol else prm.upper:g})"
+    return txt
+
+
 def _f(x: Any, nd: int = 4) -> str:
     if x is None:
         return "-"
@@ -54,7 +71,7 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
                 unit = e["units"].get(k, "")
                 folds = ", ".join(_f(x) for x in e["fold_estimates"].get(k, []))
                 ov = ", ".join(f"`{kk}={_f(vv, 5)}`" for kk, vv in e["overrides"].items())
-                L.append(f"| {e['name']} | {k} [{unit}] | {_f(v, 5)} | {_f(e['uncertainty'][k], 2)} | "
+                L.append(f"| {e['name']} | {k} [{unit}] | {_f(v, 5)} | {uncertainty_text(e['name'], k, v, e['uncertainty'][k])} | "
                          f"{_f(e['nominal'].get(k))} | {folds} | {ov} |")
         L.append("")
         for e in rows:
