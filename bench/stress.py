@@ -192,17 +192,9 @@ def yi_velocity_nees(run: Run, est: Any, t_min: float = 5.0) -> float:
     by its yaw (flat ground: roll and pitch ~0), the truth's by the true yaw, at the estimate's times.
     Yi has no absolute position sensor, so only the velocity block, observed by the encoder
     constraints (11)-(15), can be consistent."""
-    from bench.ukf import nees
+    from methods.yi2009_repro import velocity_nees_series
 
-    t = est.t
-    tv = {c: np.interp(t, run.t, run[f"truth_{c}"]) for c in ("vx", "vy")}
-    tyaw = np.interp(t, run.t, np.unwrap(run["truth_yaw"]))
-    c, s_ = np.cos(est["yaw"]), np.sin(est["yaw"])
-    ct, st = np.cos(tyaw), np.sin(tyaw)
-    e = np.column_stack((c * est["vx"] - s_ * est["vy"] - (ct * tv["vx"] - st * tv["vy"]),
-                         s_ * est["vx"] + c * est["vy"] - (st * tv["vx"] + ct * tv["vy"])))
-    m = t >= t_min
-    return float(np.mean(nees(e[m], est.info["P"][m][:, 3:5, 3:5])))
+    return float(np.mean(velocity_nees_series(run, est, t_min)))
 
 
 def _short_yi_rows(seed: int, s: StressSettings) -> list[dict[str, Any]]:

@@ -781,7 +781,7 @@ def nees_band(n_runs: int, dof: int, confidence: float = 0.95) -> tuple[float, f
 def velocity_nees_series(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
     """Per-step NEES of the horizontal velocity V_I (x, y) (state block 3:5 of ``est.info["P"]``, 2 dof)
     against the testbed truth after ``t_min`` s: the estimate's body velocity rotated by its yaw, the truth's
-    by the true yaw (as bench.stress.yi_velocity_nees, whose value is the mean of this series)."""
+    by the true yaw (bench.stress.yi_velocity_nees is the mean of this series)."""
     from bench.ukf import nees as nees_values
 
     t = est["t"]
