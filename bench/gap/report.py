@@ -27,7 +27,7 @@ def uncertainty_text(effect: str, param: str, value: float, stderr: float | None
         txt = "n/a" if stderr is None or not math.isfinite(stderr) else f"{stderr:.{digits}g}"
     prm = {p.name: p for p in get(effect).params}.get(param)
     if prm is not None and math.isfinite(value):
-        tol = 1e-6 * (prm.upper - prm.lower)
+        tol = 1e-4 * (prm.upper - prm.lower)  # the optimiser stops just inside a bound
         if value <= prm.lower + tol or value >= prm.upper - tol:
             txt += f" (at bound {prm.lower if value <= prm.lower + tol else prm.upper:g})"
     return txt
