@@ -5,7 +5,6 @@ Registered into :data:`bench.cli.COMMANDS` on import.
 from __future__ import annotations
 
 import argparse
-import inspect
 import json
 import math
 import os
@@ -27,7 +26,7 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--results", type=Path, default=None, help="output folder (default results/)")
 
 
-EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, runner) registered by features
+EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int) registered by features
 
 
 def register_extra(name: str):
@@ -35,13 +34,6 @@ def register_extra(name: str):
         EXTRAS[name] = fn
         return fn
     return deco
-
-
-def _call_extra(fn: Any, results_dir: Path, quick: bool, workers: int) -> Any:
-    """An extra is ``fn(results_dir, quick)``; one that declares ``workers`` gets ``--workers``."""
-    if "workers" in inspect.signature(fn).parameters:
-        return fn(results_dir, quick, workers=workers)
-    return fn(results_dir, quick)
 
 
 def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
@@ -94,7 +86,7 @@ def _reproduce(a: argparse.Namespace) -> int:
                 log(f"{name}: unchanged since the last run, results kept")
                 continue
             log(f"extra: {name}")
-            _call_extra(EXTRAS[name], results_dir, a.quick, a.workers)
+            EXTRAS[name](results_dir, a.quick, workers=a.workers)
             marker.parent.mkdir(parents=True, exist_ok=True)
             marker.write_text("done\n")
     R.link_extras(Path(results_dir), a.quick)
@@ -156,7 +148,7 @@ def data_root() -> Path:
 
 
 @register_extra("real")
-def _extra_real(results_dir: Path, quick: bool) -> None:
+def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: < 1 min
     from bench.real import run_real_benchmark
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
@@ -284,7 +276,7 @@ def _extra_league(results_dir: Path, quick: bool, workers: int = 1) -> None:
 
 
 @register_extra("gap")
-def _extra_gap(results_dir: Path, quick: bool) -> None:
+def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: one worked example
     from bench.gap import write_worked_example
 
     write_worked_example(Path(results_dir) / "gap")

@@ -108,12 +108,16 @@ def _calibrate(name: str, cal: list, note: list[str]) -> Any:
         return registry.get(name)
 
 
+def _league_requests(sname: str, quick: bool, n_seeds: int) -> tuple[list, list]:
+    """(scenario, seed) requests of one league scenario: its calibration set and its scored runs."""
+    scn = load_scenario(sname, {"duration": 12.0} if quick else None)
+    return calibration_set(scn, quick), [(scn, s) for s in range(n_seeds)]
+
+
 def _league_runs(runner: Runner, sname: str, quick: bool, n_seeds: int) -> tuple[list, list]:
     """The calibration set and the scored runs of one league scenario (simulated or from the cache)."""
-    scn = load_scenario(sname, {"duration": 12.0} if quick else None)
-    cal = runner.simulate_many(calibration_set(scn, quick))
-    scored = runner.simulate_many([(scn, s) for s in range(n_seeds)])
-    return cal, scored
+    cal, scored = _league_requests(sname, quick, n_seeds)
+    return runner.simulate_many(cal), runner.simulate_many(scored)
 
 
 @functools.lru_cache(maxsize=2)
@@ -163,14 +167,18 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
     so the table is the same bytes serial or parallel (tested)."""
     names = methods or list(registry.discover())
     seeds = 2 if quick else n_seeds
+    pairs = [(name, sname) for sname in scenarios for name in names]
+    parallel = runner.workers > 1 and not runner.dask_scheduler
     runs = {}
     for sname in scenarios:
-        runs[sname] = _league_runs(runner, sname, quick, seeds)
-        log(f"league: {sname} ({len(runs[sname][0])} calibration runs, {len(runs[sname][1])} scored)")
-    pairs = [(name, sname) for sname in scenarios for name in names]
-    if runner.workers <= 1 or runner.dask_scheduler:
+        cal, scored = _league_requests(sname, quick, seeds)
+        if parallel:  # simulate only: the workers read the runs from the run cache
+            runner.prepare(cal + scored)
+        else:
+            runs[sname] = runner.simulate_many(cal), runner.simulate_many(scored)
+        log(f"league: {sname} ({len(cal)} calibration runs, {len(scored)} scored)")
+    if not parallel:
         return [_cell(name, sname, *runs[sname]) for name, sname in pairs]
-    runs.clear()  # the workers read them from the run cache
     order = sorted(range(len(pairs)), key=lambda i: -CELL_COST.get(pairs[i][0], 0.5))
     with ProcessPoolExecutor(max_workers=runner.workers) as ex:
         futures = {i: ex.submit(_cell_job, *pairs[i], quick, seeds, str(runner.cache_dir)) for i in order}

@@ -184,7 +184,7 @@ def testbed_chi(platform_name: str, abs_ratios: Sequence[float], tread_speeds: S
         return [math.nan] * len(abs_ratios)
     out = []
     for lam, v in zip(abs_ratios, tread_speeds):
-        cmd = CommandSpec(kind="v_curvature_ratio", segments=((Segment(duration, float(v), float(lam))),))
+        cmd = CommandSpec(kind="v_curvature_ratio", segments=(Segment(duration, float(v), float(lam)),))
         run = simulate(dataclasses.replace(base, command=cmd, duration=duration), seed)
         out.append(chi_eq25(run.data, base.platform, settle))
     return out
@@ -460,7 +460,7 @@ class YiSGamma(_Kinematic):
         fwd = usable & (u > 0)
         bwd = usable & (u < 0)
         if min(fwd.sum(), bwd.sum()) < MIN_S_POINTS_PER_DIRECTION:  # one direction (Yi's case): x_M = 0
-            fit = fit_s_gamma(gam[usable] * np.sign(u[usable]), s[usable] * np.sign(u[usable]), a3=self.a3)
+            fit = fit_s_gamma(gam[usable], s[usable] * np.sign(u[usable]), a3=self.a3)  # (41) uses |gamma|
             sg = fit.s_gamma
             return dataclasses.replace(self, a1=sg.a1, a2=sg.a2, a3=sg.a3, x_m=0.0, n_fit=fit.n_points,
                                        s_fit_rms=fit.residual_rms)
@@ -696,8 +696,8 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     a_lam = np.abs(lam[usable])
     full = [b for b in bins if b["n"] > 0]
     speeds = [float(np.clip(np.median(outer[(a_lam >= b["lo"]) & (a_lam < b["hi"])]), 0.1, 1.5)) for b in full]
-    for b, c in zip(full, testbed_chi(name, [b["median_abs_ratio"] for b in full], speeds)):
-        b["testbed"], b["testbed_speed"] = c, float(speeds[full.index(b)])
+    for b, c, v in zip(full, testbed_chi(name, [b["median_abs_ratio"] for b in full], speeds), speeds):
+        b["testbed"], b["testbed_speed"] = c, v
     for b in bins:
         b.setdefault("testbed", math.nan)
         b.setdefault("testbed_speed", math.nan)

@@ -196,7 +196,7 @@ def reference_position_noise(run: Run) -> float:
     """Standard deviation [m] of the run's reference-sensor position (``meta.platform.sensors.reference.
     pos_noise``), which noise identifications subtract from their residuals.  A run without it (e.g. an
     imported log whose mapping gives none) is an error, not a silently perfect reference."""
-    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference") if isinstance(run.meta, Mapping) else None
+    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference")
     sig = ref.get("pos_noise") if isinstance(ref, Mapping) else None
     if not isinstance(sig, (int, float)) or isinstance(sig, bool) or not math.isfinite(sig) or sig < 0:
         raise RunError(run.where, "meta platform.sensors.reference.pos_noise", sig,

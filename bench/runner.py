@@ -69,7 +69,9 @@ class Runner:
     def simulate(self, scn: Scenario, seed: int = 0) -> Run:
         return self.simulate_many([(scn, seed)])[0]
 
-    def simulate_many(self, requests: Sequence[tuple[Scenario, int]]) -> list[Run]:
+    def prepare(self, requests: Sequence[tuple[Scenario, int]]) -> list[Path]:
+        """Simulate the requested runs that are not in the cache; return every request's cache path
+        (nothing is read: for callers whose workers read the runs themselves)."""
         paths = [self.path_for(s, seed) for s, seed in requests]
         todo: dict[Path, tuple[Scenario, int]] = {}
         for (s, seed), path in zip(requests, paths):
@@ -80,6 +82,10 @@ class Runner:
             Path(self.cache_dir).mkdir(parents=True, exist_ok=True)
             self._compute(todo)
             self.stats["simulated"] += len(todo)
+        return paths
+
+    def simulate_many(self, requests: Sequence[tuple[Scenario, int]]) -> list[Run]:
+        paths = self.prepare(requests)
         runs = [Run.from_parquet(p) for p in paths]
         for (s, seed), path, run in zip(requests, paths, runs):
             self._record(s, seed, path.stem, run)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, Mapping
 
 import numpy as np
 
+from bench.gap.catalogue import get
 from bench.report.io import atomic_savefig, atomic_write_json, atomic_write_text
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -19,8 +20,6 @@ if TYPE_CHECKING:  # pragma: no cover
 def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
     """The std. error cell: "not identified" when the data do not determine the parameter (infinite
     standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
-    from bench.gap.catalogue import get
-
     if stderr is not None and math.isinf(stderr):
         txt = "not identified"
     else:
