@@ -37,13 +37,17 @@ Map: paper equation -> code
                                                                      :meth:`Yi2009Ekf.calibrate`
     Fig. 5         variants 1/2/3                                 -> ``Yi2009Ekf(variant=...)``,
                                                                      :func:`ekf_v1`, :func:`ekf_v2`, :func:`ekf_v3`
-    (not Yi's)     consistent configuration (issue 4): sigma_1 of (13) and sigma_2 of (15) identified on
-                   calibration runs against the reference sensor   -> :func:`identify_yi_noise`,
-                                                                     :func:`reference_body_velocity`,
-                                                                     :func:`pseudo_measurements`,
-                                                                     :func:`correlated_noise_fit`,
-                                                                     :class:`Yi2009EkfConsistent`,
-                                                                     :func:`ekf_v1_consistent` .. ``_v3_consistent``
+    (not Yi's)     consistent configuration (issue 4): the v_x (13) / v_y (15) pseudo-measurement errors as
+                   first-order Gauss-Markov states, IMU noise and levelling precision identified on calibration
+                   runs against the reference sensor   -> :class:`GaussMarkov`, :func:`run_filter_gm`,
+                                                          :func:`identify_yi_noise`, :func:`gauss_markov_fit`,
+                                                          :func:`high_frequency_var`, :func:`ar1_detrended_var`,
+                                                          :func:`static_imu_noise`, :func:`at_rest_start`,
+                                                          :func:`encoder_white_floor`,
+                                                          :func:`reference_body_velocity`,
+                                                          :func:`pseudo_measurements`,
+                                                          :class:`Yi2009EkfConsistent`,
+                                                          :func:`ekf_v1_consistent` .. ``_v3_consistent``
 
 How the paper estimates slip (Sec. III-C, IV-A)
     The state is the 9-vector (P_I, V_I, Theta) of eq. (18): slip is NOT augmented.  Slip is
@@ -71,13 +75,24 @@ Measured behaviour of this design (synthetic runs of tests/test_yi2009.py)
 Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_consistency.md)
     The paper configuration is heavily overconfident in velocity: the v_x row (13) is fused at 125 Hz
     as white noise with sigma_1 = r sigma_en (~0.009 m/s), but its real error is a bias with a
-    correlation time of seconds (slip ignored in scheme 1; in schemes 2-3 the fed-back slip makes it
+    correlation time of seconds (net slip in scheme 1; in schemes 2-3 the fed-back slip makes it
     the filter's own previous velocity error, bounded only by (14)), and scheme 3's v_y row (15)
     carries the S(gamma) error, also a slowly varying bias, fused as white with sigma_2 = 0.05 m/s.
-    :class:`Yi2009EkfConsistent` runs the SAME :func:`run_filter` with sigma_1 and sigma_2 identified on
-    calibration runs (:func:`identify_yi_noise`: residual of the fused pseudo-measurement against the
-    reference-derived body velocity, white + AR(1) with the mean kept, correlated part inflated by the
-    effective-sample factor (1 + rho)/(1 - rho) at the filter rate, as methods.liu2020.identify_noise).
+    :class:`Yi2009EkfConsistent` keeps the rows, the slip feedback and S(gamma), and models those errors
+    as first-order Gauss-Markov states (state augmentation for autocorrelated measurement noise: Gelb 1974
+    Sec. 3.8, Bar-Shalom, Li, Kirubarajan 2001 Sec. 8.4), :func:`run_filter_gm`, a separate loop so that
+    :func:`run_filter` (the paper path) is untouched (not fusing a v_x row whose constrained slip (14) is at the
+    +-1 clip of (6) is an option, ``skip_saturated``, off: measured, it made the straight path worse).
+    Inflating a white R by the effective-sample factor (1 + rho)/(1 - rho) instead (the previous version) gave R of
+    metres per second wherever the calibration data contain a bias, i.e. a filter that ignores the encoders.  sigma,
+    tau and the white part of each row, the IMU white noise (Q) and the levelling precision (P0) are identified on
+    calibration runs against the reference sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated
+    runs scenarios/yi_calib.toml and yi_calib_steps.toml).  What it cannot represent (measured, see the nees
+    note): with fed-back slip the v_x row's error IS the filter's own velocity error (correlated with the
+    state, not an independent process); once the slip is locked at the clip ((13) then reads ~0 whatever the
+    speed, which holds the estimate low: a self-locking loop on a straight line, see the nees note for the
+    measured effect); and the lateral velocity of schemes 1-2, observed only through roll in the
+    v_z row linearised at the estimate.
 
 Variants (Fig. 5, Sec. V-C)
     1: v_x (13) without slip (lambda' = 0) and v_z (11);  2: v_x with slip feedback (13)-(14) and
@@ -763,116 +778,548 @@ def pseudo_measurements(est_slip: np.ndarray, s_icr: np.ndarray, yaw_rate: np.nd
     return y_x, y_y
 
 
-def correlated_noise_fit(res: Sequence[np.ndarray], lag: int) -> tuple[float, float, float]:
-    """(white variance, correlated variance s_c^2, lag-1 correlation rho) of residuals modelled as
-    white + AR(1) WITHOUT removing their mean: a bias is an error the filter must cover, and it is
-    the limit rho -> 1 of the AR(1).  Autocovariances pooled over the runs: C(k) = s_c^2 rho^k for
-    k >= 1, so rho = (C(lag)/C(1))^(1/(lag - 1)) and s_c^2 = C(1)/rho; white = C(0) - s_c^2."""
-    if lag < 2:
-        raise ValueError(f"correlated_noise_fit: lag = {lag} must be >= 2")
-    c = np.zeros(3)
-    n = 0
+@dataclass(frozen=True)
+class GaussMarkov:
+    """First-order Gauss-Markov error of a pseudo-measurement row, b(k) = a b(k-1) + w(k) with
+    a = exp(-dT/tau), Var w = sigma^2 (1 - a^2) (stationary std ``sigma``; Gelb 1974 Table 3.8-1; autocorrelated
+    measurement noise by state augmentation: Bar-Shalom, Li, Kirubarajan 2001 Sec. 8.4), plus the white part
+    ``white`` of the row's error (``white_floored``: the estimate fell below the physical floor and was raised to it)."""
+
+    sigma: float  # [m/s] stationary std of the correlated error
+    tau: float  # [s] correlation time
+    white: float  # [m/s] std of the white part (the row's R)
+    white_floored: bool = False
+
+    def __post_init__(self) -> None:
+        for k in ("sigma", "tau", "white"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"GaussMarkov.{k} = {v!r}: must be finite and > 0")
+
+
+GM_NEGLIGIBLE_SIGMA = 1e-4  # [m/s] sigma of a correlated part that is not resolved (kept > 0 for the state)
+GM_MIN_DECAY = 0.05  # a^L below this: tau << lag, the decay is not resolvable at these lags
+
+
+def _nan_autocov(res: Sequence[np.ndarray], lags: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Pooled sums of e(k) e(k + L) and pair counts over the series, using only pairs with both values finite
+    (NaN marks a masked step on the full time grid, so lags stay lags in time)."""
+    c = np.zeros(len(lags))
+    n = np.zeros(len(lags))
     for e in res:
         e = np.asarray(e, float)
-        if e.size <= lag:
-            continue
-        c += (float(e @ e), float(e[1:] @ e[:-1]), float(e[lag:] @ e[:-lag]))
-        n += e.size
+        ok = np.isfinite(e)
+        z = np.where(ok, e, 0.0)
+        for i, L in enumerate(lags):
+            if e.size <= L:
+                continue
+            c[i] += float(z[L:] @ z[:e.size - L])
+            n[i] += float(np.count_nonzero(ok[L:] & ok[:e.size - L]))
+    return c, n
+
+
+def gauss_markov_fit(res: Sequence[np.ndarray], dt: float, lag_time: float, white_window: int,
+                     white_floor: float = 0.0) -> GaussMarkov:
+    """White + first-order Gauss-Markov model of residual series sampled every ``dt`` s on a uniform grid (NaN =
+    masked step; mean kept: a bias is the limit tau -> inf and must be covered).  Autocovariances pooled over the
+    series from the finite pairs (:func:`_nan_autocov`) at lags L = round(lag_time/dt) and 2L (beyond the reach of
+    the reference derivative's own correlated noise and of the encoders' MA(1) quantisation noise):
+    C(L) = s^2 a^L, C(2L) = s^2 a^2L, so a^L = C(2L)/C(L), s^2 = min(C(L)/a^L, C(0)) (a correlated part cannot
+    exceed the total variance), tau = -L dT / ln(a^L).  a^L is capped at 0.999 (no decay within 2L: a bias); when
+    C(L) <= 0, C(2L) <= 0 or a^L < ``GM_MIN_DECAY`` (tau unresolvable at these lags) there is no Gauss-Markov
+    state to fit (sigma = ``GM_NEGLIGIBLE_SIGMA``, tau = lag_time).
+    White part: at least C(0) - s^2 (the variance the Gauss-Markov state does not carry: an error correlated over
+    less than the lags is covered by R, not dropped), and at least the series' variance about its centred moving
+    average over ``white_window`` samples (odd; :func:`high_frequency_var`) minus what the fitted Gauss-Markov part
+    leaves there (closed form :func:`ar1_detrended_var`); floored at ``white_floor`` [m/s] (a physical lower bound
+    of the row's white noise, ``white_floored`` set when it applies; a tiny positive floor when 0)."""
+    if not (dt > 0 and lag_time > 0):
+        raise ValueError(f"gauss_markov_fit: dt = {dt!r} and lag_time = {lag_time!r} must be > 0")
+    lag = max(1, int(round(lag_time / dt)))
+    used = [np.asarray(e, float) for e in res if np.asarray(e).size > 2 * lag]
+    c, n = _nan_autocov(used, (0, lag, 2 * lag))
+    if n[2] == 0:
+        raise ValueError(f"gauss_markov_fit: no residual series longer than 2 lags ({2 * lag} samples)")
+    c0, cl, c2l = c / n
+    aL = min(c2l / cl, 0.999) if cl > 0 and c2l > 0 else 0.0
+    if aL < GM_MIN_DECAY:
+        s2, tau = GM_NEGLIGIBLE_SIGMA**2, lag_time
+    else:
+        s2 = min(cl / aL, c0)
+        tau = -lag * dt / math.log(aL)
+    w = int(white_window)
+    hf = [(high_frequency_var(e, w), np.count_nonzero(np.isfinite(e))) for e in used]
+    hf_var = float(np.average([h for h, _ in hf], weights=[m for _, m in hf]))
+    white2 = max(hf_var - ar1_detrended_var(s2, math.exp(-dt / tau), w) * w / (w - 1), c0 - s2)
+    floor = max(float(white_floor), 1e-6)
+    floored = white2 < floor**2
+    return GaussMarkov(math.sqrt(max(s2, GM_NEGLIGIBLE_SIGMA**2)), tau, math.sqrt(max(white2, floor**2)),
+                       bool(floored and white_floor > 0))
+
+
+def high_frequency_var(y: np.ndarray, window: int) -> float:
+    """Variance of ``y`` about its centred moving average over ``window`` samples (odd; edges dropped), NaN-aware:
+    at each finite centre the average is over the m >= 3 finite samples of the window and the squared deviation is
+    scaled by m/(m - 1), so that for a white series the expectation is its variance (for a masked correlated
+    series the Gauss-Markov share of :func:`ar1_detrended_var`, computed for the full window, is approximate)."""
+    y = np.asarray(y, float)
+    if window < 3 or window % 2 == 0 or y.size < 2 * window:
+        raise ValueError(f"high_frequency_var: window {window} must be odd, >= 3 and <= half of the {y.size} samples")
+    h = window // 2
+    ok = np.isfinite(y)
+    k = np.full(window, 1.0)
+    cnt = np.convolve(ok.astype(float), k, mode="valid")
+    tot = np.convolve(np.where(ok, y, 0.0), k, mode="valid")
+    yc = y[h:h + cnt.size]
+    use = np.isfinite(yc) & (cnt > 2.5)
+    if not np.any(use):
+        raise ValueError(f"high_frequency_var: no window of {window} samples with >= 3 finite values")
+    m = cnt[use]
+    d = yc[use] - tot[use] / m
+    return float(np.mean(d**2 * m / (m - 1.0)))
+
+
+def ar1_detrended_var(var: float, a: float, window: int) -> float:
+    """E[(x_k - mean_{|j| <= h} x_{k+j})^2] of a stationary AR(1) x (variance ``var``, lag-1 correlation ``a``)
+    for a centred moving average over ``window`` = 2h + 1 samples:
+    var (1 - (2/w) sum_j a^|j| + (1/w^2) sum_i sum_j a^|i - j|)."""
+    j = np.arange(window) - window // 2
+    r = a ** np.abs(j)
+    rr = a ** np.abs(j[:, None] - j[None, :])
+    return float(var * (1.0 - 2.0 * r.mean() + rr.mean()))
+
+
+SLIP_CLIP_TOL = 1e-9  # |lambda'| >= 1 - tol: the slip (6) is at its clip (consistent configuration only)
+
+
+def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
+                  track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
+                  gm_x: GaussMarkov, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
+                  skip_saturated: bool = False
+                  ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
+    """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
+
+    State (P_I, V_I, phi, theta, psi, b_x[, b_y]): b_x is the correlated error of the v_x row (13), b_y of
+    the v_y row (15) (scheme 3; ``gm_y`` required then).  Prediction of b: a = exp(-dT/tau), Q_b = sigma^2
+    (1 - a^2); measurement y_x = v_Bx + b_x + white (R = gm_x.white^2), y_y = v_By + b_y + white.  Everything
+    else (strapdown (10), slip feedback (3)-(6), (14), S(gamma) (40)-(41), the v_z row (11) with sigma_vz,
+    Joseph update, yaw wrap) is :func:`run_filter`'s.  ``skip_saturated`` True (experiment, not the default): at
+    a step where a constrained slip lambda' of (14) used in (13) is at the +-1 clip of (6) (|lambda'| >= 1 -
+    ``SLIP_CLIP_TOL``), (13) is a bound, not a measurement of v_x (it then reads ~0 whatever the speed: the
+    self-locking loop low v_hat -> lambda = 1 -> y_x = 0 -> low v_hat), so the v_x row is not fused, nor (scheme
+    3) the v_y row, whose S(gamma) (40)-(41) is evaluated with the same clipped slips.  Measured on the straight
+    path (5 seeds): 90 % of the rows skipped in schemes 2-3, no cell more consistent, and the position RMS of
+    scheme 3 up from 2.2 to 14.0 m (the lock stays and the speed is then dead-reckoned from the IMU), so it is
+    off.  Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n,
+    nb), skipped (n, 2) bool: v_x / v_y row dropped at the clip, all False unless ``skip_saturated``)."""
+    if variant not in (1, 2, 3):
+        raise ValueError(f"variant = {variant!r}: must be 1, 2 or 3 (Fig. 5)")
+    if variant == 3 and gm_y is None:
+        raise ValueError("run_filter_gm: scheme 3 needs gm_y (the v_y row's Gauss-Markov error)")
+    n = int(t.size)
+    r, hw = float(wheel_radius), 0.5 * float(track)
+    use_slip, use_vy = variant >= 2, variant == 3
+    nb = 2 if use_vy else 1
+    nx = 9 + nb
+    a1, a2, a3 = s_gamma.a1, s_gamma.a2, s_gamma.a3
+    g = params.gravity
+    vmin = params.min_wheel_speed
+    gms = (gm_x, gm_y) if use_vy else (gm_x,)
+    q_const = np.array([params.pos_noise**2] * 3 + [0.0] * (6 + nb))
+    q_dt2 = np.array([0.0] * 3 + [params.accel_noise**2] * 3 + [params.gyro_noise**2] * 3 + [0.0] * nb)
+    r_all = (gm_x.white**2, gm_y.white**2 if use_vy else 0.0, params.sigma_vz**2)
+    rows_enc = (0, 1, 2) if use_vy else (0, 2)
+    r_mat = {rows: np.diag([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
+    r_vec = {rows: np.array([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
+
+    t_l, acc_l, gyr_l, enc_l = t.tolist(), acc.tolist(), gyr.tolist(), enc.tolist()
+    enc_ok = np.isfinite(enc).all(axis=1).tolist()
+    out: list[tuple[float, ...]] = []
+    covs: list[np.ndarray] = []
+    Ix = np.eye(nx)
+    f_tmpl = np.eye(nx).ravel().tolist()
+
+    def ix(i: int, j: int) -> int:
+        return i * nx + j
+
+    i03, i14, i25 = ix(0, 3), ix(1, 4), ix(2, 5)
+    i36, i37, i38, i46, i47, i48 = ix(3, 6), ix(3, 7), ix(3, 8), ix(4, 6), ix(4, 7), ix(4, 8)
+    i56, i57, i66, i67, i76, i86, i87 = ix(5, 6), ix(5, 7), ix(6, 6), ix(6, 7), ix(7, 6), ix(8, 6), ix(8, 7)
+    ib = [ix(9 + j, 9 + j) for j in range(nb)]
+    zb = (0.0,) * nb
+    ex = (1.0, 0.0)[:nb]
+    ey = (0.0, 1.0)
+    P = np.zeros((nx, nx))
+    P[:9, :9] = p0
+    for j, gmj in enumerate(gms):
+        P[9 + j, 9 + j] = gmj.sigma**2
+    px, py, pz, vx, vy, vz, phi, th, psi = (float(v) for v in x0)
+    b = [0.0] * nb
+    lam_l = lam_r = 0.0
+    w_l = w_r = math.nan
+    s_cur = math.nan
+    if enc_ok[0]:
+        w_l, w_r = enc_l[0]
+        den = r * (w_l + w_r)
+        s_cur = a1 / (a2 * abs(r * (w_l - w_r) / den) + a3) if abs(den) > 1e-9 else 0.0
+    nxu = nyu = nzu = 0
+    clip = 1.0 - SLIP_CLIP_TOL
+    two_pi = 2.0 * math.pi
+    dt_last, Qk, ab = -1.0, np.zeros((nx, nx)), [1.0] * nb
+    potrf, potrs = lapack.dpotrf, lapack.dpotrs
+
+    for k in range(n):
+        gx, gy, gz = gyr_l[k]
+        sat_k = (0.0, 0.0)
+        if k > 0:
+            dt = t_l[k] - t_l[k - 1]
+            ax, ay, az = acc_l[k - 1]
+            ux, uy, uz = gyr_l[k - 1]
+            vdx = c11 * ax + c12 * ay + c13 * az
+            vdy = c21 * ax + c22 * ay + c23 * az
+            c3a = c31 * ax + c32 * ay + c33 * az
+            tt = st / ct
+            qy = sf * uy + cf * uz
+            phid = ux + tt * qy
+            thd = cf * uy - sf * uz
+            psid = qy / ct
+            if abs(dt - dt_last) > 1e-9 * dt:
+                ab = [math.exp(-dt / gmj.tau) for gmj in gms]
+                qb = [gmj.sigma**2 * (1.0 - aj * aj) for gmj, aj in zip(gms, ab)]
+                Qk, dt_last = np.diag(q_const + q_dt2 * (dt * dt) + np.array([0.0] * 9 + qb)), dt
+            fl = f_tmpl.copy()
+            fl[i03] = fl[i14] = fl[i25] = dt
+            fl[i36], fl[i37], fl[i38] = dt * (c13 * ay - c12 * az), dt * cp * c3a, -dt * vdy
+            fl[i46], fl[i47], fl[i48] = dt * (c23 * ay - c22 * az), dt * sp * c3a, dt * vdx
+            fl[i56], fl[i57] = dt * (c33 * ay - c32 * az), dt * (-ct * ax - st * sf * ay - st * cf * az)
+            fl[i66], fl[i67] = 1.0 + dt * thd * tt, dt * psid / ct
+            fl[i76] = -dt * psid * ct
+            fl[i86], fl[i87] = dt * thd / ct, dt * psid * tt
+            for j in range(nb):
+                fl[ib[j]] = ab[j]
+                b[j] *= ab[j]
+            F = np.array(fl).reshape(nx, nx)
+            px += dt * vx
+            py += dt * vy
+            pz += dt * vz
+            vx += dt * vdx
+            vy += dt * vdy
+            vz += dt * (c3a - g)
+            phi += dt * phid
+            th += dt * thd
+            psi += dt * psid
+            P = F @ P @ F.T + Qk
+
+            sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
+            sp, cp = math.sin(psi), math.cos(psi)
+            c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
+            c21, c22, c23 = ct * sp, cf * cp + st * sf * sp, -sf * cp + st * cf * sp
+            c31, c32, c33 = -st, ct * sf, cf * ct
+            vbx = c11 * vx + c21 * vy + c31 * vz
+            vby = c12 * vx + c22 * vy + c32 * vz
+            vbz = c13 * vx + c23 * vy + c33 * vz
+            h_x = (0.0, 0.0, 0.0, c11, c21, c31, 0.0, -st * cp * vx - st * sp * vy - ct * vz, c11 * vy - c21 * vx) + ex
+            h_z = (0.0, 0.0, 0.0, c13, c23, c33, -vby, cf * vbx, c13 * vy - c23 * vx) + zb
+            if enc_ok[k]:
+                w_l, w_r = enc_l[k]
+                if use_slip:
+                    pl = (lam_l if lam_l > 0.0 else 0.0) if w_l >= w_r else (lam_l if lam_l < 0.0 else 0.0)
+                    pr = (lam_r if lam_r > 0.0 else 0.0) if w_l <= w_r else (lam_r if lam_r < 0.0 else 0.0)
+                else:
+                    pl = pr = 0.0
+                y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))
+                sat = skip_saturated and (abs(pl) >= clip or abs(pr) >= clip)
+                if use_vy:
+                    v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
+                    den = v_lx + v_rx
+                    s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0
+                    y_y = -s_cur * (sf * gy + cf * gz) / ct
+                    h_y = (0.0, 0.0, 0.0, c12, c22, c32, vbz, sf * vbx, c12 * vy - c22 * vx) + ey
+                if sat:  # (13) at the clip: a bound, no information on v_x (nor on v_y through S(gamma))
+                    H = np.array((h_z,))
+                    innov = np.array((-vbz,))
+                    rows = (2,)
+                    sat_k = (1.0, float(use_vy))
+                elif use_vy:
+                    H = np.array((h_x, h_y, h_z))
+                    innov = np.array((y_x - vbx - b[0], y_y - vby - b[1], -vbz))
+                    rows = rows_enc
+                else:
+                    H = np.array((h_x, h_z))
+                    innov = np.array((y_x - vbx - b[0], -vbz))
+                    rows = rows_enc
+                if not sat:
+                    nxu += 1
+                    nyu += use_vy
+            else:
+                H = np.array((h_z,))
+                innov = np.array((-vbz,))
+                rows = (2,)
+            nzu += 1
+            PHt = P @ H.T
+            S = H @ PHt + r_mat[rows]
+            L, info = potrf(S, lower=1)
+            d = L.diagonal().tolist()
+            if info != 0 or not (all(v > 0.0 for v in d) and math.isfinite(sum(d))):
+                raise FilterDivergence(where, k, t_l[k], f"innovation covariance S not positive definite: {S.tolist()}")
+            K = potrs(L, PHt.T, lower=1)[0].T
+            IKH = Ix - K @ H
+            P = IKH @ P @ IKH.T + (K * r_vec[rows]) @ K.T
+            P = 0.5 * (P + P.T)
+            dx = (K @ innov).tolist()
+            px += dx[0]
+            py += dx[1]
+            pz += dx[2]
+            vx += dx[3]
+            vy += dx[4]
+            vz += dx[5]
+            phi += dx[6]
+            th += dx[7]
+            psi += dx[8]
+            for j in range(nb):
+                b[j] += dx[9 + j]
+            if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi + sum(b)):
+                raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
+            psi = (psi + math.pi) % two_pi - math.pi
+
+        sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
+        sp, cp = math.sin(psi), math.cos(psi)
+        c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
+        c21, c22, c23 = ct * sp, cf * cp + st * sf * sp, -sf * cp + st * cf * sp
+        c31, c32, c33 = -st, ct * sf, cf * ct
+        vbx = c11 * vx + c21 * vy + c31 * vz
+        vby = c12 * vx + c22 * vy + c32 * vz
+        vbz = c13 * vx + c23 * vy + c33 * vz
+        psid = (sf * gy + cf * gz) / ct
+        if w_l == w_l:
+            rwl, rwr = r * w_l, r * w_r
+            lam_l = min(1.0, max(-1.0, (rwl - (vbx - hw * psid)) / rwl)) if abs(rwl) >= vmin else 0.0
+            lam_r = min(1.0, max(-1.0, (rwr - (vbx + hw * psid)) / rwr)) if abs(rwr) >= vmin else 0.0
+            sl_l, sl_r = lam_l, lam_r
+        else:
+            sl_l = sl_r = math.nan
+        out.append((px, py, pz, vx, vy, vz, phi, th, psi, vbx, vby, vbz, psid, sl_l, sl_r, s_cur, *sat_k, *b))
+        if store_cov:
+            covs.append(P)
+
+    o = np.array(out, dtype=float).reshape(n, 18 + nb)
+    s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
+    res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
+                       np.array(covs) if store_cov else None)
+    return res, o[:, 18:], o[:, 16:18] > 0.5
+
+
+def at_rest_start(enc: np.ndarray, wheel_radius: float, params: EkfParams) -> bool:
+    """True when :func:`initial_state` levels roll/pitch (the wheels at rest over the first ``level_samples``
+    steps).  Evaluated by :func:`initial_state` itself (no second copy of its test): fed a specific force with
+    roll pi/4, it returns that roll only when it levels."""
+    n = enc.shape[0]
     if n == 0:
-        raise ValueError(f"correlated_noise_fit: no residual longer than lag {lag}")
-    c0, c1, cl = c / n
-    if not (c1 > 0 and cl > 0):
-        return c0, 0.0, 0.0
-    rho = min((cl / c1) ** (1.0 / (lag - 1)), 1.0 - 1e-9)
-    sc2 = min(c1 / rho, c0)
-    return c0 - sc2, sc2, rho
+        return False
+    acc = np.tile((0.0, 1.0, 1.0), (n, 1))
+    x0, _ = initial_state(acc, enc, wheel_radius, params, (0.0, 0.0, 0.0))
+    return bool(x0[6] != 0.0)
 
 
-@dataclass(frozen=True)
-class YiNoise:
-    """Identified noise of one pseudo-measurement row (:func:`identify_yi_noise`)."""
+def static_imu_noise(runs: Sequence[Run], min_samples: int = 50, guard: float = 0.25, required: bool = True
+                     ) -> tuple[float, float, int] | None:
+    """White noise per sample of the accelerometer [m/s^2] and gyro [rad/s] from the initial rest of
+    calibration runs (IMU steps more than ``guard`` s before the first non-zero encoder reading: the first count
+    lags the start of the motion): per-run, per-axis sample variance about the axis mean (the gravity/bias level),
+    pooled over runs with weights n_i - 1 (degrees of freedom) and as the mean over axes.  Returns (accel std,
+    gyro std, samples used); when no run has ``min_samples`` at rest: RunError if ``required``, else None."""
+    va, vg, dof, n = np.zeros(3), np.zeros(3), 0, 0
+    for run in runs:
+        t, acc, gyr, enc = align_inputs(run)
+        moving = np.flatnonzero(np.isfinite(enc).all(axis=1) & (np.abs(enc).max(axis=1, initial=0.0) > 1e-9))
+        stop = int(np.searchsorted(t, t[moving[0]] - guard)) if moving.size else t.size
+        if stop < min_samples:
+            continue
+        va += (stop - 1) * np.var(acc[:stop], axis=0, ddof=1)
+        vg += (stop - 1) * np.var(gyr[:stop], axis=0, ddof=1)
+        dof += stop - 1
+        n += stop
+    if n == 0:
+        if not required:
+            return None
+        raise RunError(", ".join(r.id for r in runs) or "(no runs)", "enc_wl/enc_wr", "no rest at the start",
+                       f"the IMU noise identification needs >= {min_samples} IMU samples at rest before the wheels "
+                       "move")
+    return float(np.sqrt(np.mean(va / dof))), float(np.sqrt(np.mean(vg / dof))), n
 
-    white_var: float  # [m^2/s^2]
-    corr_var: float  # [m^2/s^2] correlated part incl. bias^2, minus the reference derivative's noise
-    rho_step: float  # correlation over one filter step
-    factor: float  # (1 + rho)/(1 - rho)
-    bias: float  # [m/s] mean residual (part of corr_var)
-    sigma: float  # [m/s] fused standard deviation, sqrt(white + corr * factor)
 
-    @property
-    def corr_time(self) -> float:
-        """Correlation time in filter steps (-1/ln rho)."""
-        return -1.0 / math.log(self.rho_step) if 0.0 < self.rho_step < 1.0 else 0.0
+def encoder_white_floor(run: Run) -> tuple[float, str]:
+    """Lower bound [m/s] of the white noise of the v_x row (13), r (w_L + w_R)/2: the encoder speed quantisation
+    q = 2 pi rate / counts_per_rev (``meta.platform.sensors.encoder``), each wheel speed a difference of two
+    uniformly quantised counts (sd q / sqrt(6)), averaged over the two wheels: r q / sqrt(12).  An explicit
+    ``encoder.noise`` [rad/s] in the meta takes precedence (r noise / sqrt(2)); (0, "none") when neither exists."""
+    r = _geometry(run)[0]
+    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
+    spec = spec if isinstance(spec, Mapping) else {}
+    noise = spec.get("noise")
+    if isinstance(noise, (int, float)) and math.isfinite(noise) and noise > 0:
+        return r * float(noise) / math.sqrt(2.0), "encoder noise spec"
+    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
+    if all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
+        return r * 2.0 * math.pi * float(rate) / float(cpr) / math.sqrt(12.0), "encoder quantisation"
+    return 0.0, "none"
 
 
-def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0, lag_time: float = 0.5,
-                      iterations: int = 2, max_factor: float = 1e6) -> tuple[EkfParams, dict[str, Any]]:
-    """Measurement noise of the v_x (13) and v_y (15) rows identified on calibration runs against the
-    reference sensor (never the truth), for the consistent configuration.
+def _rel_change(new: GaussMarkov | None, old: GaussMarkov | None) -> float:
+    if new is None or old is None:
+        return 0.0
+    return max(abs(new.sigma - old.sigma) / old.sigma, abs(new.tau - old.tau) / old.tau)
 
-    The filter ``model`` is run on each run; the pseudo-measurements it fused (:func:`pseudo_measurements`)
-    are compared with the reference body velocity (:func:`reference_body_velocity`) at the steps with a
-    fresh encoder pair after ``settle`` s.  The residual is split into white + AR(1) with its mean kept
-    (:func:`correlated_noise_fit`, correlation from lags 1 and ``lag_time``); the correlated part
-    (minus the reference derivative's own noise) is fused at the filter rate with the effective-sample
-    factor (1 + rho)/(1 - rho) (capped at ``max_factor``): n correlated samples carry the information
-    of n (1 - rho)/(1 + rho) independent ones.  Repeated ``iterations`` times with the identified noise
-    (slip feedback (13)-(14) depends on the filter's own velocity, so the residual depends on R).
-    sigma_vz (11) is kept (the reference is planar: no v_z reference)."""
+
+def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0, lag_time: float = 1.25,
+                      max_iterations: int = 8, tol: float = 0.05, white_window: float = 0.2
+                      ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, dict[str, Any]]:
+    """Noise of the consistent configuration identified on calibration runs with the reference sensor
+    (never the truth, never a scored run).
+
+    1. IMU white noise per sample from the initial rest (:func:`static_imu_noise`) -> ``accel_noise``,
+       ``gyro_noise`` (Q of V and Theta), and ``p0_rollpitch`` = accel_noise / (g sqrt(level_samples)), the
+       precision of the static levelling (used only when a run starts at rest, see :class:`Yi2009EkfConsistent`).
+       When no calibration run starts at rest (e.g. the league's calibration set) the model's ``accel_noise`` /
+       ``gyro_noise`` and P0 are kept (``info["imu_noise_source"]`` = "paper default", else "rest").
+    2. The v_x (13) and, for scheme 3, v_y (15) pseudo-measurement errors as white + Gauss-Markov
+       (:func:`gauss_markov_fit`): the augmented filter (:func:`run_filter_gm`) is run on each run, the rows it
+       fused are rebuilt (:func:`pseudo_measurements`) and compared with the reference body velocity
+       (:func:`reference_body_velocity`) on the filter's time grid; steps without a fresh encoder pair, before
+       ``settle`` s or outside the reference are NaN, so that lags
+       ``lag_time`` and 2 ``lag_time`` stay lags in time (beyond the 1 s derivative window of the reference,
+       whose own noise is then uncorrelated).  The white part as :func:`gauss_markov_fit` gives it (``white_window``
+       s moving average), floored at a physical bound: v_x row :func:`encoder_white_floor`, v_y row RMS |S(gamma)| x
+       gyro_noise.  Steps with the wheels at rest (r|w| < min_wheel_speed) count as zero error (the row is exact at
+       standstill: both sides 0).  Repeated until sigma and tau of every row change by less than ``tol`` (relative)
+       between passes, at most ``max_iterations`` passes (with slip feedback (13)-(14) the fused row depends on the
+       filter's own velocity); the first pass starts from the paper's sigmas as white parts and sigma = 0.05 m/s,
+       tau = 1 s.  ``info`` reports every pass, the
+       last relative change and whether it converged.
+    sigma_vz (11) is the paper's (the reference is planar: no v_z reference)."""
     if not runs:
         raise ValueError(f"{model.name}: identify_yi_noise needs at least one calibration run")
-    if iterations < 1:
-        raise ValueError(f"{model.name}: identify_yi_noise iterations = {iterations!r}: must be >= 1")
-    params = model.params
-    info: dict[str, Any] = {"calibration_runs": [r.id for r in runs]}
-    for it in range(iterations):
+    if max_iterations < 1:
+        raise ValueError(f"{model.name}: identify_yi_noise max_iterations = {max_iterations!r}: must be >= 1")
+    for run in runs:
+        run.require(model.requires | frozenset(REF_CHANNELS), f"{model.name} (calibration)")
+    imu = static_imu_noise(runs, required=False)
+    if imu is not None:
+        sa, sg, n_static = imu
+        params = replace(model.params, accel_noise=sa, gyro_noise=sg,
+                         p0_rollpitch=sa / (model.params.gravity * math.sqrt(max(model.params.level_samples, 1))))
+    else:
+        n_static, params = 0, model.params
+    r0 = _geometry(runs[0])[0]
+    floor_x, floor_src = encoder_white_floor(runs[0])
+    gm_x = GaussMarkov(0.05, 1.0, r0 * model.params.sigma_enc)
+    gm_y = GaussMarkov(0.05, 1.0, model.params.sigma_vy) if model.variant == 3 else None
+    info: dict[str, Any] = {"calibration_runs": [r.id for r in runs], "accel_noise": params.accel_noise,
+                            "gyro_noise": params.gyro_noise, "static_samples": n_static,
+                            "p0_rollpitch": params.p0_rollpitch,
+                            "imu_noise_source": "rest" if imu is not None else "paper default",
+                            "vx_white_floor": floor_x, "vx_white_floor_source": floor_src}
+    change, it = math.inf, 0
+    for it in range(max_iterations):
         res_x: list[np.ndarray] = []
         res_y: list[np.ndarray] = []
-        ref_var, dts = [], []
+        s_sq, s_n, dts = 0.0, 0, []
         for run in runs:
-            run.require(model.requires | frozenset(REF_CHANNELS), f"{model.name} (calibration)")
             r, track = _geometry(run)
             t, acc, gyr, enc = align_inputs(run)
-            x0, p0 = initial_state(acc, enc, r, params, model.initial_pose)
-            fr = run_filter(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
-                            s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, where=run.where)
+            x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
+            fr, _, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
+                                           s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
+                                           where=run.where)
             y_x, y_y = pseudo_measurements(fr.slip, fr.s_icr, fr.yaw_rate, enc, r, model.variant)
-            vx, vy, var = reference_body_velocity(run, t)
+            vx, vy, _ = reference_body_velocity(run, t)
             m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
-            res_x.append(y_x[m] - vx[m])
+            moving = m & (r * np.abs(np.nan_to_num(enc)).max(axis=1) >= model.params.min_wheel_speed)
+            res_x.append(np.where(m, np.where(moving, y_x - vx, 0.0), np.nan))
             if model.variant == 3:
-                res_y.append(y_y[m] - vy[m])
-            ref_var.append(var)
+                res_y.append(np.where(m, np.where(moving, y_y - vy, 0.0), np.nan))
+                s_sq += float(np.sum(fr.s_icr[moving] ** 2))
+                s_n += int(np.count_nonzero(moving))
             dts.append(float(np.median(np.diff(t))))
         dt = float(np.median(dts))
-        lag = max(2, int(round(lag_time / dt)))
-        vref = float(np.mean(ref_var))
-        rows: dict[str, YiNoise] = {}
-        for key, res in (("vx", res_x), ("vy", res_y)):
-            if not res:
-                continue
-            white, corr, rho = correlated_noise_fit(res, lag)
-            corr = max(corr - vref, 0.0)
-            factor = min((1.0 + rho) / (1.0 - rho), max_factor) if rho > 0 else 1.0
-            bias = float(np.mean(np.concatenate(res)))
-            rows[key] = YiNoise(white, corr, rho, factor, bias, math.sqrt(max(white + corr * factor, 1e-12)))
-        r0 = _geometry(runs[0])[0]
-        params = replace(params, sigma_enc=rows["vx"].sigma / r0,
-                         sigma_vy=rows["vy"].sigma if "vy" in rows else params.sigma_vy)
-        info[f"iteration{it}"] = {k: asdict(v) | {"corr_time_s": v.corr_time * dt} for k, v in rows.items()}
-    info.update({"sigma_enc": params.sigma_enc, "sigma_1": params.sigma_enc * _geometry(runs[0])[0],
-                 "sigma_vy": params.sigma_vy, "sigma_vz": params.sigma_vz, "reference_velocity_var": vref, "filter_dt": dt})
-    return params, info
+        win = max(3, int(round(white_window / dt)) | 1)
+        new_x = gauss_markov_fit(res_x, dt, lag_time, win, floor_x)
+        new_y = None
+        if model.variant == 3:
+            floor_y = math.sqrt(s_sq / max(s_n, 1)) * params.gyro_noise
+            new_y = gauss_markov_fit(res_y, dt, lag_time, win, floor_y)
+            info["vy_white_floor"] = floor_y
+        change = max(_rel_change(new_x, gm_x), _rel_change(new_y, gm_y))
+        gm_x, gm_y = new_x, new_y
+        info[f"iteration{it}"] = {**{k: asdict(v) for k, v in (("vx", gm_x), ("vy", gm_y)) if v is not None},
+                                  "change": change}
+        if it > 0 and change < tol:
+            break
+    info.update({"vx": asdict(gm_x), "vy": asdict(gm_y) if gm_y is not None else None, "filter_dt": dt,
+                 "iterations": it + 1, "last_change": change, "converged": bool(it > 0 and change < tol)})
+    return params, gm_x, gm_y, info
+
+
+def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params: EkfParams,
+                              pose: tuple[float, float, float], unlevelled_p0_rollpitch: float
+                              ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`initial_state` with ``params`` (roll/pitch variance ``params.p0_rollpitch``, the identified static
+    levelling precision) when the run starts at rest; otherwise with ``unlevelled_p0_rollpitch`` (the model's own
+    value before identification: the paper's 0.02 rad by default)."""
+    x0, p0 = initial_state(acc, enc, r, params, pose)
+    if not at_rest_start(enc, r, params):
+        p0[6, 6] = p0[7, 7] = unlevelled_p0_rollpitch ** 2
+    return x0, p0
+
+
+def _estimate_output(model: Yi2009Ekf, res: FilterResult, t: np.ndarray, enc: np.ndarray, r: float, track: float,
+                     x0: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Columns and info of an estimate of the consistent plugins, as :meth:`Yi2009Ekf.estimate` builds them (that
+    method belongs to the paper section, kept byte-identical, so it does not call this helper)."""
+    st = res.state
+    cols: dict[str, np.ndarray] = dict(
+        t=res.t, x=st[:, 0], y=st[:, 1], yaw=st[:, 8], vx=res.v_body[:, 0], vy=res.v_body[:, 1],
+        wz=res.yaw_rate, slip_l=res.slip[:, 0], slip_r=res.slip[:, 1],
+        z=st[:, 2], vz=res.v_body[:, 2], roll=st[:, 6], pitch=st[:, 7],
+    )
+    if model.variant == 3:
+        cols["x_icr"] = res.s_icr
+    info: dict[str, Any] = dict(
+        variant=model.variant, paper=PAPER, wheel_radius=r, track=track,
+        s_gamma=dict(a1_m=model.s_gamma.a1, a1_cm=model.s_gamma.a1_cm, a2=model.s_gamma.a2, a3=model.s_gamma.a3),
+        params=asdict(model.params), n_steps=int(t.size), n_updates=dict(zip(("vx", "vy", "vz"), res.n_updates)),
+        n_encoder_steps=int(np.isfinite(enc).all(axis=1).sum()), initial_state=x0.tolist(),
+    )
+    if model.calibration is not None:
+        info["calibration"] = dict(points=list(model.calibration_points), residual_rms=model.calibration.residual_rms)
+    return cols, info
 
 
 @dataclass(frozen=True)
 class Yi2009EkfConsistent(Yi2009Ekf):
-    """Yi's EKF scheme 1/2/3 in a consistent configuration (NOT the paper's; issue 4): the same filter
-    (:func:`run_filter`, unchanged) with sigma_1 (v_x row, (13)) and sigma_2 (v_y row, (15)) identified on
-    calibration runs by :func:`identify_yi_noise`; scheme 3 also fits S(gamma) on them as the paper does.
-    Process noise, sigma_3 (v_z, (11)) and the initial covariance are the paper configuration's."""
+    """Yi's EKF scheme 1/2/3 in a consistent configuration (NOT the paper's; issue 4).
+
+    The same measurement rows, slip feedback and S(gamma) as the scheme, but
+    * the correlated errors of the v_x (13) and v_y (15) pseudo-measurements are states (first-order
+      Gauss-Markov, :func:`run_filter_gm`) instead of white noise: their error is a slowly varying bias
+      (net slip in scheme 1, the filter's own fed-back velocity error in schemes 2-3, the S(gamma) error in
+      (15)), and inflating a white R by (1 + rho)/(1 - rho) for it makes R enormous wherever the
+      calibration data slip more than the scored data;
+    * the IMU white noise (Q) and the levelled roll/pitch precision (P0) are identified from the rest at
+      the start of the calibration runs (:func:`static_imu_noise`; the model's values when no run starts at
+      rest); that P0 is used only on runs that start at rest (static levelling, :func:`at_rest_start`), otherwise
+      roll/pitch keep the paper's 0.02 rad;
+    * sigma_3 of the v_z row (11), the position process noise and the other P0 entries are the paper's.
+    :meth:`calibrate` fits S(gamma) (41) on the runs given (scheme 3, as :meth:`Yi2009Ekf.calibrate`, when
+    ``refit_s_gamma``; the reproduction passes the paper's fit on Yi's identification runs and sets it False) and
+    identifies the noise on them (:func:`identify_yi_noise`; the reproduction uses the dedicated paths
+    ``scenarios/yi_calib.toml`` / ``yi_calib_steps.toml``, same platform and terrain as the scored paths)."""
 
     calibrated: bool = False
+    gm_x: GaussMarkov | None = None
+    gm_y: GaussMarkov | None = None
+    refit_s_gamma: bool = True
+    unlevelled_p0_rollpitch: float = EkfParams().p0_rollpitch  # [rad] roll/pitch P0 on runs that start moving
     noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     @property
@@ -884,29 +1331,48 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         return frozenset(REF_CHANNELS)
 
     def calibrate(self, runs: Sequence[Run]) -> "Yi2009EkfConsistent":
-        m = super().calibrate(runs)
-        params, info = identify_yi_noise(runs, m)
-        return replace(m, params=params, calibrated=True, noise_info=info)
+        base = super().calibrate(runs) if self.refit_s_gamma else self
+        params, gm_x, gm_y, info = identify_yi_noise(runs, base)
+        return replace(base, params=params, gm_x=gm_x, gm_y=gm_y, calibrated=True, noise_info=info,
+                       unlevelled_p0_rollpitch=base.params.p0_rollpitch)
 
     def estimate(self, run: Run) -> Estimate:
-        if not self.calibrated:
-            raise RunError(run.where, "calibration", "none", f"{self.name} identifies its measurement noise on "
-                           "calibration runs with a reference sensor (ref_x, ref_y, ref_yaw): call calibrate first")
-        est = super().estimate(run)
-        est.info["noise"] = {k: v for k, v in self.noise_info.items() if isinstance(v, (int, float))}
-        return est
+        if not self.calibrated or self.gm_x is None:
+            raise RunError(run.where, "calibration", "none", f"{self.name} identifies its noise on calibration runs "
+                           "with a reference sensor (ref_x, ref_y, ref_yaw): call calibrate first")
+        run.require(self.requires, self.name)
+        r, track = _geometry(run)
+        t, acc, gyr, enc = align_inputs(run)
+        x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
+        res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
+                                           s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
+                                           gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where)
+        cols, info = _estimate_output(self, res, t, enc, r, track, x0)
+        cols["b_x"] = bias[:, 0]
+        if self.variant == 3:
+            cols["b_y"] = bias[:, 1]
+        info.update(
+            configuration="consistent (not the paper's)", gm_x=asdict(self.gm_x),
+            gm_y=asdict(self.gm_y) if self.gm_y else None,
+            noise={k: v for k, v in self.noise_info.items() if isinstance(v, (int, float, str, bool))},
+        )
+        if res.cov is not None:
+            info["P"] = res.cov[:, :9, :9]  # state order (P_I, V_I, phi, theta, psi), as Yi2009Ekf
+            info["P_aug"] = res.cov
+        return make_estimate(self.name, info, **cols)
 
 
 def ekf_v1_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
-    """Scheme 1 with the measurement noise identified on calibration runs (not the paper's)."""
+    """Scheme 1 with the Gauss-Markov v_x error state and noise identified on calibration runs (not the paper's)."""
     return Yi2009EkfConsistent(variant=1, **kwargs)
 
 
 def ekf_v2_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
-    """Scheme 2 with the measurement noise identified on calibration runs (not the paper's)."""
+    """Scheme 2 with the Gauss-Markov v_x error state and noise identified on calibration runs (not the paper's)."""
     return Yi2009EkfConsistent(variant=2, **kwargs)
 
 
 def ekf_v3_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
-    """Scheme 3 with S(gamma) and the measurement noise identified on calibration runs (not the paper's)."""
+    """Scheme 3 with Gauss-Markov v_x / v_y error states and noise identified on calibration runs (not the
+    paper's); S(gamma) is the instance's ``s_gamma`` (default: the published one)."""
     return Yi2009EkfConsistent(variant=3, **kwargs)

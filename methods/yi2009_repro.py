@@ -68,8 +68,13 @@ Choices (each one stated where the paper is silent or the testbed differs)
 * Filter consistency (not a Yi claim; issue 4): the horizontal velocity V_I (x, y) NEES against truth after
   5 s (Yi has no absolute position sensor: position NEES is not meaningful), seed-averaged, against the
   two-sided 95% band chi2(2N)/N; paper configuration = the scored plugins with ``store_covariance``, consistent =
-  :class:`methods.yi2009.Yi2009EkfConsistent` whose sigma_1 / sigma_2 are identified on the S(gamma)
-  identification runs (reference sensor only), never on a scored run.
+  :class:`methods.yi2009.Yi2009EkfConsistent` (Gauss-Markov error states of the v_x / v_y rows, IMU noise
+  from the rest at the start) identified on the dedicated calibration runs
+  ``Settings.nees_calibration`` (``scenarios/yi_calib.toml``, gradual command changes, and
+  ``scenarios/yi_calib_steps.toml``, step changes; seeds listed there and in nees_consistency.md): same platform and
+  concrete as the scored paths, other wheel-speed pairs (Yi's S(gamma) runs on sand and counter-rotating pairs
+  slip far more than the scored paths and are not representative of them); reference sensor only, never a
+  scored run.  Its scheme 3 uses the S(gamma) fitted on the identification runs by the paper's scheme 3.
 * Diagnosis (not a verdict; declared): the same scored paths re-simulated with better sensors
   (encoders 20000 counts/rev instead of 2000, IMU noise 0.01 m/s^2 / 0.001 rad/s instead of
   0.05 / 0.005) -- a sensitivity variant, never the headline; scheme 3 with the published S(gamma)
@@ -96,7 +101,8 @@ from bench.report.io import atomic_savefig, atomic_write_text
 from bench.run import Run, RunError
 from bench.spec import Scenario, load_scenario
 from bench.ukf import NEES_MIN_STEP_FRACTION
-from methods.yi2009 import PUBLISHED_S_GAMMA, Yi2009Ekf, fit_s_gamma, reference_s_gamma_point
+from methods.yi2009 import (PUBLISHED_S_GAMMA, SLIP_CLIP_TOL, EkfParams, Yi2009Ekf, Yi2009EkfConsistent, fit_s_gamma,
+                            reference_s_gamma_point)
 
 __all__ = ["fig3", "fig4", "fig5_6", "fig7", "diagnosis", "nees", "nees_band", "nees_summary",
            "velocity_nees_series", "Settings", "SETTINGS", "mean_ci", "vision_slip",
@@ -146,6 +152,8 @@ class Settings:
         ("platform.sensors.imu.gyro_noise", 0.001),
     )
     confidence: float = 0.95
+    # calibration runs of the consistent configuration (nees table; same in quick mode): other paths and seeds
+    nees_calibration: tuple[tuple[str, int], ...] = (("yi_calib", 200), ("yi_calib_steps", 201))
 
     def ident(self, quick: bool) -> tuple[tuple[int, tuple[str, float, float]], ...]:
         """(index, (terrain, w_L, w_R)) of the identification runs of this mode."""
@@ -778,12 +786,9 @@ def nees_band(n_runs: int, dof: int, confidence: float = 0.95) -> tuple[float, f
     return float(stats.chi2.ppf(a, n_runs * dof) / n_runs), float(stats.chi2.ppf(1 - a, n_runs * dof) / n_runs)
 
 
-def velocity_nees_series(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
-    """Per-step NEES of the horizontal velocity V_I (x, y) (state block 3:5 of ``est.info["P"]``, 2 dof)
-    against the testbed truth after ``t_min`` s: the estimate's body velocity rotated by its yaw, the truth's
-    by the true yaw (bench.stress.yi_velocity_nees is the mean of this series)."""
-    from bench.ukf import nees as nees_values
-
+def _horizontal_velocity_error(run: Run, est: Estimate) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(e (n, 2), cos yaw, sin yaw): the horizontal V_I error at the estimate's steps, the estimate's body velocity
+    rotated by its yaw minus the truth's rotated by the true yaw, and the estimated heading's cos / sin."""
     t = est["t"]
     tv = {c: np.interp(t, run.t, run[f"truth_{c}"]) for c in ("vx", "vy")}
     tyaw = np.interp(t, run.t, np.unwrap(run["truth_yaw"]))
@@ -791,44 +796,88 @@ def velocity_nees_series(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> 
     ct, st = np.cos(tyaw), np.sin(tyaw)
     e = np.column_stack((c * est["vx"] - s_ * est["vy"] - (ct * tv["vx"] - st * tv["vy"]),
                          s_ * est["vx"] + c * est["vy"] - (st * tv["vx"] + ct * tv["vy"])))
-    m = t >= t_min
+    return e, c, s_
+
+
+def velocity_nees_series(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
+    """Per-step NEES of the horizontal velocity V_I (x, y) (state block 3:5 of ``est.info["P"]``, 2 dof)
+    against the testbed truth after ``t_min`` s (:func:`_horizontal_velocity_error`; bench.stress.yi_velocity_nees
+    is the mean of this series)."""
+    from bench.ukf import nees as nees_values
+
+    e, _, _ = _horizontal_velocity_error(run, est)
+    m = est["t"] >= t_min
     return np.asarray(nees_values(e[m], est.info["P"][m][:, 3:5, 3:5]), dtype=float)
+
+
+def body_velocity_errors(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
+    """(T, 4) per step after ``t_min``: the horizontal velocity error of :func:`velocity_nees_series` and its
+    covariance (block 3:5 of ``est.info["P"]``) rotated into the estimate's heading frame: error along / across
+    the heading, and the standard deviation the filter claims along / across (which axis is over- or under-covered)."""
+    e, c, s_ = _horizontal_velocity_error(run, est)
+    P = est.info["P"][:, 3:5, 3:5]
+    pxx = c * c * P[:, 0, 0] + 2 * c * s_ * P[:, 0, 1] + s_ * s_ * P[:, 1, 1]
+    pyy = s_ * s_ * P[:, 0, 0] - 2 * c * s_ * P[:, 0, 1] + c * c * P[:, 1, 1]
+    m = est["t"] >= t_min
+    return np.column_stack((c * e[:, 0] + s_ * e[:, 1], -s_ * e[:, 0] + c * e[:, 1], np.sqrt(pxx), np.sqrt(pyy)))[m]
+
+
+def slip_lock_and_roll(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> dict[str, float]:
+    """Per-run diagnostics of the nees table from the estimate: fraction of steps whose posterior slip (6) of either
+    side is at the +-1 clip and the time of the first such step (NaN if none; whole run), the roll error RMS against
+    ``truth_roll`` and the RMS roll sd the filter claims (P[6, 6]) after ``t_min``."""
+    t = est["t"]
+    sl = np.column_stack((est["slip_l"], est["slip_r"]))
+    clipped = (np.abs(np.nan_to_num(sl)) >= 1.0 - SLIP_CLIP_TOL).any(axis=1)
+    m = t >= t_min
+    droll = est["roll"][m] - np.interp(t[m], run.t, run["truth_roll"])
+    return {"clip_frac": float(np.mean(clipped)),
+            "first_clip_s": float(t[np.argmax(clipped)] - t[0]) if clipped.any() else math.nan,
+            "roll_err": float(np.sqrt(np.mean(droll**2))),
+            "roll_sd": float(np.sqrt(np.mean(est.info["P"][m][:, 6, 6])))}
 
 
 def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     """Paper vs consistent configuration of the three schemes on the scored runs: per-step velocity NEES
-    (n_seeds, T) and position RMS per seed; the consistent noise is identified on the identification runs
-    only (the same runs as S(gamma)).  Memoised in ``ctx.info``."""
+    (n_seeds, T) and position RMS per seed.  The consistent configuration's noise is identified on the dedicated
+    calibration runs (``SETTINGS.nees_calibration``: yi_calib / yi_calib_steps, other paths and seeds than any
+    scored run), its scheme 3 uses the S(gamma) the paper's scheme 3 fitted on the identification runs.
+    Memoised in ``ctx.info``."""
     cached = ctx.info.get(_NEES_KEY)
     if cached is not None:
         return cached
-    from methods.yi2009 import Yi2009EkfConsistent
-
     ev = _evaluate(ctx)
     cfg = SETTINGS
     ident_runs = ctx.simulate_many([(_ident_scenario(tr, wl, wr, cfg.ident_duration), cfg.ident_seed0 + i)
                                     for i, (tr, wl, wr) in cfg.ident(ev.quick)])
+    calib_runs = ctx.simulate_many([(load_scenario(sid), seed) for sid, seed in cfg.nees_calibration])
     methods = {}
     for v in VARIANTS:
         methods[("paper", v)] = registry.calibrate(Yi2009Ekf(variant=v, store_covariance=True), ident_runs)
-        methods[("consistent", v)] = registry.calibrate(Yi2009EkfConsistent(variant=v, store_covariance=True), ident_runs)
+        s_gamma = methods[("paper", 3)].s_gamma if v == 3 else PUBLISHED_S_GAMMA
+        methods[("consistent", v)] = registry.calibrate(
+            Yi2009EkfConsistent(variant=v, s_gamma=s_gamma, refit_s_gamma=False, store_covariance=True), calib_runs)
     scored = {k: load_scenario(n) for k, n in PATHS.items()}
     keys = [(k, s) for k in PATHS for s in ev.seeds]
     runs = dict(zip(keys, ctx.simulate_many([(scored[k], s) for k, s in keys])))
     series: dict[tuple[str, str, int], np.ndarray] = {}
     rms: dict[tuple[str, str, int], list[float]] = {}
+    axes: dict[tuple[str, str, int], list[np.ndarray]] = {}
+    diag: dict[tuple[str, str, int], list[dict[str, float]]] = {}
     for k in PATHS:
-        truth_list = []
         for s in ev.seeds:
             run = runs[(k, s)]
             truth = Trajectory.from_run(run, "truth")
-            truth_list.append(truth)
             for (cfg_name, v), m in methods.items():
                 est = registry.estimate(m, run)
                 series.setdefault((k, cfg_name, v), []).append(velocity_nees_series(run, est))
                 rms.setdefault((k, cfg_name, v), []).append(position_rms(truth, Trajectory.from_estimate(est)))
+                axes.setdefault((k, cfg_name, v), []).append(body_velocity_errors(run, est))
+                diag.setdefault((k, cfg_name, v), []).append(slip_lock_and_roll(run, est))
     out = {"series": {key: np.vstack(v) for key, v in series.items()}, "rms": rms,
-           "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods}
+           "axes": {key: np.vstack(v) for key, v in axes.items()}, "diag": diag,
+           "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods,
+           "calibration": [f"{sid} seed {seed}" for sid, seed in cfg.nees_calibration]}
     ctx.info[_NEES_KEY] = out
     return out
 
@@ -836,8 +885,8 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
 def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int, dof: int = 2,
                  confidence: float = 0.95) -> dict[str, float]:
     """Metrics of the nees table from per-step NEES arrays (n_seeds, T): ``<path>.<config>.v<k>.nees`` (time
-    mean of the seed-averaged NEES), ``.in_band`` / ``.above`` (fraction of steps whose seed-averaged NEES is
-    inside / above the band), ``<config>_in_band`` = 1 when every path's and scheme's seed-averaged NEES is in the
+    mean of the seed-averaged NEES), ``.in_band`` / ``.below`` / ``.above`` (fraction of steps whose seed-averaged
+    NEES is inside / below / above the band; they sum to 1), ``<config>_in_band`` = 1 when every path's and scheme's seed-averaged NEES is in the
     band at >= ``bench.ukf.NEES_MIN_STEP_FRACTION`` of the steps (Bar-Shalom's test), and ``<config>_mean_in_band``
     (reported only) = 1 when every time mean lies in the band."""
     lo, hi = nees_band(n_seeds, dof, confidence)
@@ -849,6 +898,7 @@ def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int
         m = float(np.mean(avg))
         out[f"{k}.{c}.v{v}.nees"] = m
         out[f"{k}.{c}.v{v}.in_band"] = float(np.mean((avg >= lo) & (avg <= hi)))
+        out[f"{k}.{c}.v{v}.below"] = float(np.mean(avg < lo))
         out[f"{k}.{c}.v{v}.above"] = float(np.mean(avg > hi))
         ok[c] = ok[c] and out[f"{k}.{c}.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION
         ok_mean[c] = ok_mean[c] and lo <= m <= hi
@@ -860,68 +910,141 @@ def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int
 
 def nees(ctx: Any) -> dict[str, float]:
     """Velocity NEES of the three schemes, paper vs consistent configuration, mean over seeds, against the
-    chi-square 95% band for the number of seeds; position RMS of both configurations."""
+    chi-square 95% band for the number of seeds; position RMS of both configurations; identified noise; per cell
+    the slip-clip and roll diagnostics (:func:`slip_lock_and_roll`) that gate the notes' sentences."""
     ne = _nees_evaluate(ctx)
     seeds = ctx.info.get("seeds") or list(SETTINGS.seeds_quick if ctx.quick else SETTINGS.seeds_full)
     n = len(seeds)
     out = nees_summary(ne["series"], n, 2, SETTINGS.confidence)
     for (k, c, v), vals in ne["rms"].items():
         out[f"{k}.{c}.v{v}.pos_rms"] = float(np.mean(vals))
+    for (k, c, v), a in ne["axes"].items():  # RMS over seeds and steps: error vs claimed sd, along / across heading
+        for j, key in enumerate(("err_along", "err_across", "sd_along", "sd_across")):
+            out[f"{k}.{c}.v{v}.{key}"] = float(np.sqrt(np.mean(a[:, j] ** 2)))
+    for (k, c, v), ds in ne["diag"].items():
+        out[f"{k}.{c}.v{v}.clip_frac"] = float(np.mean([d["clip_frac"] for d in ds]))
+        first = [d["first_clip_s"] for d in ds if math.isfinite(d["first_clip_s"])]
+        if first:  # median over the seeds with a clip (no key without one: metrics.json holds no NaN)
+            out[f"{k}.{c}.v{v}.first_clip_s"] = float(np.median(first))
+        out[f"{k}.{c}.v{v}.roll_err"] = float(np.sqrt(np.mean([d["roll_err"] ** 2 for d in ds])))
+        out[f"{k}.{c}.v{v}.roll_sd"] = float(np.sqrt(np.mean([d["roll_sd"] ** 2 for d in ds])))
     for v, info in ne["noise"].items():
-        for key in ("sigma_1", "sigma_vy"):
-            if key in info and (v == 3 or key == "sigma_1"):
-                out[f"noise.v{v}.{key}"] = float(info[key])
-        last = info.get(f"iteration{max(int(k[9:]) for k in info if k.startswith('iteration'))}", {})
-        for row, d in last.items():
-            out[f"noise.v{v}.{row}.bias"] = float(d["bias"])
-            out[f"noise.v{v}.{row}.corr_time_s"] = float(d["corr_time_s"])
-            out[f"noise.v{v}.{row}.factor"] = float(d["factor"])
+        for key in ("accel_noise", "gyro_noise", "p0_rollpitch", "iterations", "last_change", "converged"):
+            out[f"noise.v{v}.{key}"] = float(info[key])
+        for row in ("vx", "vy"):
+            if info.get(row):
+                for key in ("sigma", "tau", "white", "white_floored"):
+                    out[f"noise.v{v}.{row}.{key}"] = float(info[row][key])
     lo, hi = out["band_lo"], out["band_hi"]
+    calib = ", ".join(ne["calibration"])
+    imu_src = "/".join(sorted({str(i["imu_noise_source"]) for i in ne["noise"].values()}))
     lines = ["# Yi 2009 EKF: velocity NEES (horizontal V_I, 2 dof) against truth, paper vs consistent configuration", "",
              f"N = {n} seeds {list(seeds)}; band [{lo:.2f}, {hi:.2f}] = chi2_0.025/0.975(2N)/N (consistent mean 2); "
-             f"window t >= {NEES_T_MIN:g} s. in band / above: fraction of steps whose seed-averaged NEES is inside / above "
-             "the band. Consistent: methods.yi2009.Yi2009EkfConsistent, sigma_1 (v_x, eq. (13)) and sigma_2 (v_y, eq. (15)) "
-             "identified on the S(gamma) identification runs against the vision reference (identify_yi_noise), never on a "
-             "scored run. pos RMS: position RMS vs truth [m], mean over seeds.", "",
-             "| path | scheme | paper NEES | in band | above | pos RMS | consistent NEES | in band | above | pos RMS |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             f"window t >= {NEES_T_MIN:g} s. in band / below / above: fraction of steps whose seed-averaged NEES is "
+             f"inside / below / above the band (pass: >= {NEES_MIN_STEP_FRACTION:.0%} in band). Consistent: "
+             "methods.yi2009.Yi2009EkfConsistent: the v_x (13) and v_y (15) pseudo-measurement errors as first-order "
+             "Gauss-Markov states (run_filter_gm), IMU white noise "
+             f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
+             f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
+             "paper's S(gamma) fit. pos RMS: position RMS vs truth [m], mean over seeds. err / sd along, across: RMS "
+             "velocity error [m/s] along / across the estimated heading and the RMS standard deviation the filter claims "
+             "there. clip: fraction of steps with a posterior slip at the clip.", "",
+             "| path | scheme | paper NEES | in / below / above | clip | pos RMS | consistent NEES | in / below / above | "
+             "clip | pos RMS | err / sd along | err / sd across | roll err / sd [rad] |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def fr(p: str) -> str:
+        return f"{out[p + '.in_band']:.2f} / {out[p + '.below']:.2f} / {out[p + '.above']:.2f}"
+
     for k in PATHS:
         for v in VARIANTS:
             p, c = f"{k}.paper.v{v}", f"{k}.consistent.v{v}"
-            lines.append(f"| {k} | {v} | {out[p + '.nees']:.3g} | {out[p + '.in_band']:.2f} | {out[p + '.above']:.2f} | "
-                         f"{out[p + '.pos_rms']:.3g} | {out[c + '.nees']:.3g} | {out[c + '.in_band']:.2f} | "
-                         f"{out[c + '.above']:.2f} | {out[c + '.pos_rms']:.3g} |")
-    lines += ["", "Identified noise (last iteration): " + ", ".join(f"{key} = {val:.4g}" for key, val in out.items()
-                                                                  if key.startswith("noise."))]
+            lines.append(f"| {k} | {v} | {out[p + '.nees']:.3g} | {fr(p)} | {out[p + '.clip_frac']:.2f} | "
+                         f"{out[p + '.pos_rms']:.3g} | {out[c + '.nees']:.3g} | {fr(c)} | {out[c + '.clip_frac']:.2f} | "
+                         f"{out[c + '.pos_rms']:.3g} | {out[c + '.err_along']:.3g} / "
+                         f"{out[c + '.sd_along']:.3g} | {out[c + '.err_across']:.3g} / {out[c + '.sd_across']:.3g} | "
+                         f"{out[c + '.roll_err']:.3g} / {out[c + '.roll_sd']:.3g} |")
+    lines += ["", "Identified (consistent configuration): " + ", ".join(f"{key} = {val:.4g}" for key, val in out.items()
+                                                                      if key.startswith("noise."))]
     atomic_write_text(ctx.out_dir / "nees_consistency.md", "\n".join(lines) + "\n")
 
     def fmt(c: str) -> str:
         return "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.{c}.v{v}.nees']:.3g}" for v in VARIANTS) for k in PATHS)
 
+    def steps(c: str) -> str:
+        return "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.{c}.v{v}.in_band']:.0%}" for v in VARIANTS) for k in PATHS)
+
+    def axis_txt(cells: list[tuple[str, int]]) -> str:
+        return "; ".join(f"{k} {v}: along {out[f'{k}.consistent.v{v}.err_along']:.3g}/{out[f'{k}.consistent.v{v}.sd_along']:.3g},"
+                         f" across {out[f'{k}.consistent.v{v}.err_across']:.3g}/{out[f'{k}.consistent.v{v}.sd_across']:.3g}"
+                         for k, v in cells)
+
+    def name(cells: list[tuple[str, int]]) -> str:
+        return ", ".join(f"{k} scheme {v}" for k, v in cells)
+
+    pp = EkfParams()
     ctx.note("nees_paper", (
-        f"Paper configuration, mean velocity NEES of schemes 1/2/3 ({fmt('paper')}) against [{lo:.2f}, {hi:.2f}]. Causes: "
-        f"the v_x row (13) is fused at 125 Hz as white noise with sigma_1 = r sigma_en = {Yi2009Ekf().params.sigma_enc:g} "
-        "rad/s x r, but with slip feedback (schemes 2, 3) it re-measures the filter's own previous velocity, an error "
-        f"that is a bias with a correlation time of seconds (identified: bias {out.get('noise.v2.vx.bias', math.nan):.3g} m/s, "
-        f"{out.get('noise.v2.vx.corr_time_s', math.nan):.3g} s for scheme 2); scheme 3's v_y row (15) carries the S(gamma) "
-        f"error (bias {out.get('noise.v3.vy.bias', math.nan):.3g} m/s, {out.get('noise.v3.vy.corr_time_s', math.nan):.3g} s) "
-        f"fused as white with sigma_2 = {Yi2009Ekf().params.sigma_vy:g} m/s. See nees_consistency.md."))
-    below = [f"{k} scheme {v}" for k in PATHS for v in VARIANTS if out[f"{k}.consistent.v{v}.nees"] < lo]
-    above = [f"{k} scheme {v}" for k in PATHS for v in VARIANTS if out[f"{k}.consistent.v{v}.nees"] > hi]
-    ctx.note("nees_consistent", (
-        f"Consistent configuration, mean velocity NEES of schemes 1/2/3 ({fmt('consistent')}) against [{lo:.2f}, {hi:.2f}]; "
-        "identified fused sigmas: " + ", ".join(f"v{v} sigma_1 {out[f'noise.v{v}.sigma_1']:.3g} m/s" for v in VARIANTS)
-        + f", v3 sigma_2 {out['noise.v3.sigma_vy']:.3g} m/s (pooled residual bias: v1 v_x "
-        f"{out['noise.v1.vx.bias']:.3g} m/s, correlation time {out['noise.v1.vx.corr_time_s']:.3g} s). "
-        + "Steps in band: " + "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.consistent.v{v}.in_band']:.0%}" for v in VARIANTS)
-                                       for k in PATHS)
-        + f" (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "
-        + (f"Below the band ({', '.join(below)}): the identification runs (the paper's S(gamma) set, incl. sand and "
-           "counter-rotating pairs) slip far more than the scored paths, and their slowly varying v_x/v_y bias, inflated "
-           "by (1 + rho)/(1 - rho), sets a conservative R (the encoder rows are nearly dropped; a bias is a model error, "
-           "not noise). " if below else "")
-        + (f"Above the band ({', '.join(above)}): the velocity then comes from the IMU, whose pitch error and bias drift "
-           "exceed the paper's process noise (no IMU bias states), and (13) with fed-back slip re-measures the filter's own "
-           "velocity (an error correlated with the state, which no white R represents). " if above else "")
-        + "See nees_consistency.md."))
+        f"Paper configuration, mean velocity NEES of schemes 1/2/3 ({fmt('paper')}) against [{lo:.2f}, {hi:.2f}]; steps "
+        f"in band {steps('paper')}. Causes: the v_x row (13) is fused at 125 Hz as white noise with sigma_1 = r sigma_en "
+        f"(sigma_en = {pp.sigma_enc:g} rad/s), but its error is correlated over seconds (identified on the calibration runs: "
+        f"scheme 2 Gauss-Markov sigma {out['noise.v2.vx.sigma']:.3g} m/s, tau {out['noise.v2.vx.tau']:.3g} s; with slip "
+        "feedback (13) re-measures the filter's own previous velocity); scheme 3's v_y row (15) carries the S(gamma) error "
+        f"(sigma {out['noise.v3.vy.sigma']:.3g} m/s, tau {out['noise.v3.vy.tau']:.3g} s) fused as white with sigma_2 = "
+        f"{pp.sigma_vy:g} m/s. See nees_consistency.md."))
+    cells = [(k, v) for k in PATHS for v in VARIANTS]
+    fails = [(k, v) for k, v in cells if out[f"{k}.consistent.v{v}.in_band"] < NEES_MIN_STEP_FRACTION]
+    passed = [(k, v) for k, v in cells if (k, v) not in fails]
+    # classify failing cells by their per-step fractions (not by the time mean)
+    above = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.above"] >= out[f"{k}.consistent.v{v}.below"]]
+    below = [(k, v) for k, v in fails if (k, v) not in above]
+    txt = (f"Consistent configuration (Gauss-Markov error states of the v_x/v_y rows, "
+           f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 ({fmt('consistent')}) against "
+           f"[{lo:.2f}, {hi:.2f}]; steps in band {steps('consistent')} (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "
+           f"Identified: IMU noise ({imu_src}) {out['noise.v1.accel_noise']:.3g} m/s^2 / {out['noise.v1.gyro_noise']:.3g} "
+           "rad/s per sample; v_x row sigma/tau/white "
+           + ", ".join(f"v{v} {out[f'noise.v{v}.vx.sigma']:.3g} m/s / {out[f'noise.v{v}.vx.tau']:.3g} s / "
+                       f"{out[f'noise.v{v}.vx.white']:.3g} m/s" for v in VARIANTS)
+           + f"; v_y row (scheme 3) {out['noise.v3.vy.sigma']:.3g} m/s / {out['noise.v3.vy.tau']:.3g} s / "
+           f"{out['noise.v3.vy.white']:.3g} m/s"
+           + (" (white part at its physical floor)" if out["noise.v3.vy.white_floored"] else "") + "; identification "
+           + ", ".join(f"v{v} {'converged' if out[f'noise.v{v}.converged'] else 'NOT converged'} after "
+                       f"{out[f'noise.v{v}.iterations']:.0f} passes (last change {out[f'noise.v{v}.last_change']:.1%})"
+                       for v in VARIANTS) + ". ")
+    txt += (f"Passes: {name(passed)}. " if passed else "Passes nowhere. ")
+    if above:
+        txt += (f"Mostly above the band ({name(above)}; RMS error / claimed sd [m/s] along and across the heading: "
+                f"{axis_txt(above)}). ")
+        locked = [(k, v) for k, v in above if v >= 2 and out[f"{k}.consistent.v{v}.clip_frac"] >= 0.5]
+        if locked:
+            txt += ("The fed-back slip sits at the +-1 clip of (6) at "
+                    + ", ".join(f"{out[f'{k}.consistent.v{v}.clip_frac']:.0%} of the steps ({k} {v}, first after "
+                                f"{out[f'{k}.consistent.v{v}.first_clip_s']:.2g} s)" for k, v in locked)
+                    + ": (13) then reads ~0 whatever the speed (a bound, not a measurement), which holds the estimated "
+                    "speed low and the slip at the clip (a self-locking loop); "
+                    "along-track error RMS / claimed sd "
+                    + ", ".join(f"{out[f'{k}.consistent.v{v}.err_along']:.3g} / {out[f'{k}.consistent.v{v}.sd_along']:.3g} "
+                                f"m/s ({k} {v})" for k, v in locked)
+                    + ". ")
+        roll = [(k, v) for k, v in above if v <= 2
+                and out[f"{k}.consistent.v{v}.roll_err"] > 1.5 * out[f"{k}.consistent.v{v}.roll_sd"]
+                and out[f"{k}.consistent.v{v}.err_across"] > out[f"{k}.consistent.v{v}.sd_across"]]
+        if roll:
+            txt += ("Roll error RMS / claimed sd [rad]: "
+                    + ", ".join(f"{k} {v} {out[f'{k}.consistent.v{v}.roll_err']:.3g} / "
+                                f"{out[f'{k}.consistent.v{v}.roll_sd']:.3g}" for k, v in roll)
+                    + ": schemes 1-2 have no lateral row, and roll is observed only through the v_z row (11) linearised "
+                    "at the estimated v_By (spuriously observable), which shrinks the across-track covariance below the "
+                    "actual drift. ")
+    if below:
+        txt += f"Mostly below the band ({name(below)}; {axis_txt(below)}): the claimed sd exceeds the error"
+
+        def ratio(k: str, v: int, ax: str) -> float:
+            return out[f"{k}.consistent.v{v}.sd_{ax}"] / max(out[f"{k}.consistent.v{v}.err_{ax}"], 1e-12)
+
+        if all(ratio(k, v, "along") > ratio(k, v, "across") for k, v in below):
+            txt += (", most along the heading: the v_x Gauss-Markov sigma identified on the calibration runs "
+                    "over-covers the v_x error here")
+        txt += ". "
+    txt += "Not tuned on the scored runs. See nees_consistency.md."
+    ctx.note("nees_consistent", txt)
     return out

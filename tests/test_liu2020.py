@@ -500,9 +500,94 @@ def test_consistent_identifies_the_receiver_model_on_a_calibration_run(sim):
     p = m.params
     assert not p.encoder_pose and p.gnss_bias_tau == info["gnss_bias_tau"] and p.r_gnss[0] == info["gnss_white_std"]
     assert p.r_encoder[3] == pytest.approx(info["enc_vx_r"]) and p.r_encoder[3] > 5 * p.r_encoder[4]
+    # process noise (match_process_noise, whiteness for the UKF+ICR): once the innovations are white, their level
+    # is near 1 where R dominates S (GNSS heading and velocity rows) -- an independent check of the separately
+    # identified R and of the whiteness answer; the gyro row's level is far below 1 (documented model misfit)
+    assert info["q_criterion"] == 0.0 and info["q_converged"] == 1.0
+    assert info["nis_yaw"] == pytest.approx(1.0, abs=0.15) and info["nis_vel"] == pytest.approx(1.0, abs=0.15)
+    assert info["nis_yaw_rate"] < 0.1
+    assert p.q_pos == LiuUkfParams().q_pos
     with pytest.raises(registry.CalibrationLeak):
         registry.estimate(m, calib)
     with pytest.raises(RunError, match="calibrate"):
         MiUkfConsistent().estimate(calib.without_truth())
     with pytest.raises(RunError, match="ref_x"):
         registry.calibrate(UkfIcrConsistent(), [Run(calib.data.drop(columns=["ref_x"]), calib.meta)])
+
+
+def test_recorded_innovations_equal_filterpy_kalman_filter_on_a_linear_model():
+    """_NisUkf's normalised innovations y_j / sqrt(S_jj) of rows 2-5 of a 6-row measurement on a linear model,
+    where the UKF is the Kalman filter: equal to FilterPy's KalmanFilter (its y and S after each update), with
+    row 3 missing at some steps (not recorded then)."""
+    from filterpy.kalman import KalmanFilter
+
+    from methods.liu2020 import _NisUkf
+
+    rng = np.random.default_rng(7)
+    n, dt = 6, 0.1
+    F = np.eye(n) + dt * np.diag(np.ones(n - 1), 1)
+    Q = np.diag(rng.uniform(0.01, 0.1, n))
+    R = np.diag(rng.uniform(0.05, 0.2, n))
+    P0 = np.eye(n)
+    ukf = _NisUkf(lambda sig, dt_, u: sig @ F.T, lambda sig: sig.copy(), np.zeros(n), P0, Q, R)
+    kf = KalmanFilter(dim_x=n, dim_z=n)
+    kf.F, kf.H, kf.Q, kf.P, kf.x = F, np.eye(n), Q, P0.copy(), np.zeros(n)
+    ref: dict[int, list[float]] = {j: [] for j in ukf.innovations}
+    x = rng.normal(size=n)
+    for k in range(200):
+        x = F @ x + rng.normal(size=n) * np.sqrt(np.diag(Q))
+        z = x + rng.normal(size=n) * np.sqrt(np.diag(R))
+        if k % 7 == 3:
+            z[3] = np.nan
+        ukf.predict(dt, None, Q)
+        ukf.update(z)
+        ok = np.isfinite(z)
+        kf.predict()
+        kf.update(z[ok], R=R[np.ix_(ok, ok)], H=np.eye(n)[ok])
+        pos = np.cumsum(ok) - 1
+        for j in ref:
+            if ok[j]:
+                ref[j].append(kf.y[pos[j]] / math.sqrt(kf.S[pos[j], pos[j]]))
+    np.testing.assert_allclose(ukf.x, kf.x, atol=1e-9)
+    assert sorted(ukf.innovations) == [2, 3, 4, 5] and len(ref[3]) < len(ref[2]) == 200
+    for j in ref:
+        np.testing.assert_allclose(ukf.innovations[j], ref[j], rtol=1e-9, atol=1e-12)
+
+
+def test_innovation_statistics_closed_form():
+    """innovation_statistics: white unit noise -> (1, 0); AR(1) with rho 0.6 and variance 4 -> (4, 0.6);
+    pooled over runs and rows."""
+    from methods.liu2020 import innovation_statistics
+
+    rng = np.random.default_rng(3)
+    white = [{2: rng.normal(size=50_000).tolist()}, {2: rng.normal(size=50_000).tolist()}]
+    nis, r1 = innovation_statistics(white, (2,))
+    assert nis == pytest.approx(1.0, abs=0.02) and abs(r1) < 0.01
+    rho, n = 0.6, 100_000
+    e = rng.normal(0, 2.0 * math.sqrt(1 - rho ** 2), n)
+    v = np.empty(n)
+    v[0] = rng.normal(0, 2.0)
+    for i in range(1, n):  # plain recursion: the closed-form AR(1)
+        v[i] = rho * v[i - 1] + e[i]
+    nis, r1 = innovation_statistics([{3: v[: n // 2].tolist(), 4: v[n // 2:].tolist()}], (3, 4))
+    assert nis == pytest.approx(4.0, rel=0.03) and r1 == pytest.approx(rho, abs=0.01)
+    assert all(math.isnan(x) for x in innovation_statistics([{2: [0.1, 0.2]}], (2,)))
+
+
+@pytest.mark.slow
+def test_whiteness_criterion_is_insensitive_to_an_error_in_r(sim):
+    """The design claim of match_process_noise: with the GNSS velocity noise R 10 % too large, the level
+    criterion's q_vel moves by far more than the whiteness criterion's (R dominates S for the GNSS rows)."""
+    from methods.liu2020 import UkfIcrConsistent, match_process_noise
+
+    calib = sim("liu_calib", 100)
+    p = registry.calibrate(UkfIcrConsistent(), [calib]).params
+    rg = list(p.r_gnss)
+    rg[3] = rg[4] = 1.1 * rg[3]
+    q = {}
+    for tag, length in (("whiteness", 1), ("level", 2)):  # p = 2 with a = 0 (lambda_2 = 0) is the same UKF, level criterion
+        for scale, r_gnss in (("ok", p.r_gnss), ("off", tuple(rg))):
+            _, info = match_process_noise([calib], replace(p, innovation_length=length, mi_a=0.0, r_gnss=r_gnss))
+            q[tag, scale] = info["q_vel"]
+    move = {tag: abs(math.log(q[tag, "off"] / q[tag, "ok"])) for tag in ("whiteness", "level")}
+    assert move["level"] > 2.0 * move["whiteness"], (q, move)
