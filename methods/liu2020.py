@@ -840,7 +840,7 @@ NIS_BLOCKS: Mapping[str, tuple[int, ...]] = {"q_yaw": (2,), "q_vel": (3, 4), "q_
 Q_LOG_BOUNDS = (math.log(1e-6), math.log(10.0))  # search range of every process-noise density (SI per sqrt(s))
 
 
-class _NisUkf(Ukf):
+class _InnovationUkf(Ukf):
     """:class:`bench.ukf.Ukf` that records, for every row of :data:`NIS_BLOCKS`, the normalised innovation
     ``y_j / sqrt(S_jj)`` of each update that fused it."""
 
@@ -923,10 +923,10 @@ def match_process_noise(runs: Sequence[Run], params: LiuUkfParams, name: str = "
         p = dataclasses.replace(p, **{b: math.exp(v) for b, v in lq.items()})
         recs = []
         for run in runs:
-            holder: list[_NisUkf] = []
+            holder: list[_InnovationUkf] = []
 
-            def make(*a: Any, **k: Any) -> _NisUkf:
-                holder.append(_NisUkf(*a, **k))
+            def make(*a: Any, **k: Any) -> _InnovationUkf:
+                holder.append(_InnovationUkf(*a, **k))
                 return holder[-1]
 
             run_liu_filter(run, p, name, make_filter=make)

@@ -622,6 +622,28 @@ def initial_state(acc: np.ndarray, enc: np.ndarray, wheel_radius: float, params:
     return x0, p0
 
 
+def _estimate_output(model: "Yi2009Ekf", res: FilterResult, t: np.ndarray, enc: np.ndarray, r: float, track: float,
+                     x0: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Columns and info of an estimate from a :class:`FilterResult` (paper and consistent plugins alike)."""
+    st = res.state
+    cols: dict[str, np.ndarray] = dict(
+        t=res.t, x=st[:, 0], y=st[:, 1], yaw=st[:, 8], vx=res.v_body[:, 0], vy=res.v_body[:, 1],
+        wz=res.yaw_rate, slip_l=res.slip[:, 0], slip_r=res.slip[:, 1],
+        z=st[:, 2], vz=res.v_body[:, 2], roll=st[:, 6], pitch=st[:, 7],
+    )
+    if model.variant == 3:
+        cols["x_icr"] = res.s_icr
+    info: dict[str, Any] = dict(
+        variant=model.variant, paper=PAPER, wheel_radius=r, track=track,
+        s_gamma=dict(a1_m=model.s_gamma.a1, a1_cm=model.s_gamma.a1_cm, a2=model.s_gamma.a2, a3=model.s_gamma.a3),
+        params=asdict(model.params), n_steps=int(t.size), n_updates=dict(zip(("vx", "vy", "vz"), res.n_updates)),
+        n_encoder_steps=int(np.isfinite(enc).all(axis=1).sum()), initial_state=x0.tolist(),
+    )
+    if model.calibration is not None:
+        info["calibration"] = dict(points=list(model.calibration_points), residual_rms=model.calibration.residual_rms)
+    return cols, info
+
+
 @dataclass(frozen=True)
 class Yi2009Ekf:
     """skidbench plugin for Yi 2009's EKF (Sec. IV-A), variant 1, 2 or 3 of Fig. 5.
@@ -682,22 +704,7 @@ class Yi2009Ekf:
         x0, p0 = initial_state(acc, enc, r, self.params, self.initial_pose)
         res = run_filter(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant, s_gamma=self.s_gamma,
                          params=self.params, x0=x0, p0=p0, store_cov=self.store_covariance, where=run.where)
-        st = res.state
-        cols: dict[str, np.ndarray] = dict(
-            t=res.t, x=st[:, 0], y=st[:, 1], yaw=st[:, 8], vx=res.v_body[:, 0], vy=res.v_body[:, 1],
-            wz=res.yaw_rate, slip_l=res.slip[:, 0], slip_r=res.slip[:, 1],
-            z=st[:, 2], vz=res.v_body[:, 2], roll=st[:, 6], pitch=st[:, 7],
-        )
-        if self.variant == 3:
-            cols["x_icr"] = res.s_icr
-        info: dict[str, Any] = dict(
-            variant=self.variant, paper=PAPER, wheel_radius=r, track=track,
-            s_gamma=dict(a1_m=self.s_gamma.a1, a1_cm=self.s_gamma.a1_cm, a2=self.s_gamma.a2, a3=self.s_gamma.a3),
-            params=asdict(self.params), n_steps=int(t.size), n_updates=dict(zip(("vx", "vy", "vz"), res.n_updates)),
-            n_encoder_steps=int(np.isfinite(enc).all(axis=1).sum()), initial_state=x0.tolist(),
-        )
-        if self.calibration is not None:
-            info["calibration"] = dict(points=list(self.calibration_points), residual_rms=self.calibration.residual_rms)
+        cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         if res.cov is not None:
             info["P"] = res.cov  # state order (P_I, V_I, phi, theta, psi), as FilterResult.state
         return make_estimate(self.name, info, **cols)
@@ -1229,8 +1236,8 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
             t, acc, gyr, enc = align_inputs(run)
             x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
             fr, _, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
-                                           s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
-                                           where=run.where)
+                                     s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
+                                     where=run.where)
             y_x, y_y = pseudo_measurements(fr.slip, fr.s_icr, fr.yaw_rate, enc, r, model.variant)
             vx, vy, _ = reference_body_velocity(run, t)
             m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
@@ -1270,29 +1277,6 @@ def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params
     if not at_rest_start(enc, r, params):
         p0[6, 6] = p0[7, 7] = unlevelled_p0_rollpitch ** 2
     return x0, p0
-
-
-def _estimate_output(model: Yi2009Ekf, res: FilterResult, t: np.ndarray, enc: np.ndarray, r: float, track: float,
-                     x0: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """Columns and info of an estimate of the consistent plugins, as :meth:`Yi2009Ekf.estimate` builds them (that
-    method belongs to the paper section, kept byte-identical, so it does not call this helper)."""
-    st = res.state
-    cols: dict[str, np.ndarray] = dict(
-        t=res.t, x=st[:, 0], y=st[:, 1], yaw=st[:, 8], vx=res.v_body[:, 0], vy=res.v_body[:, 1],
-        wz=res.yaw_rate, slip_l=res.slip[:, 0], slip_r=res.slip[:, 1],
-        z=st[:, 2], vz=res.v_body[:, 2], roll=st[:, 6], pitch=st[:, 7],
-    )
-    if model.variant == 3:
-        cols["x_icr"] = res.s_icr
-    info: dict[str, Any] = dict(
-        variant=model.variant, paper=PAPER, wheel_radius=r, track=track,
-        s_gamma=dict(a1_m=model.s_gamma.a1, a1_cm=model.s_gamma.a1_cm, a2=model.s_gamma.a2, a3=model.s_gamma.a3),
-        params=asdict(model.params), n_steps=int(t.size), n_updates=dict(zip(("vx", "vy", "vz"), res.n_updates)),
-        n_encoder_steps=int(np.isfinite(enc).all(axis=1).sum()), initial_state=x0.tolist(),
-    )
-    if model.calibration is not None:
-        info["calibration"] = dict(points=list(model.calibration_points), residual_rms=model.calibration.residual_rms)
-    return cols, info
 
 
 @dataclass(frozen=True)
@@ -1345,8 +1329,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
-                                           s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
-                                           gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where)
+                                     s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
+                                     gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where)
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:

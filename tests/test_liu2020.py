@@ -516,12 +516,12 @@ def test_consistent_identifies_the_receiver_model_on_a_calibration_run(sim):
 
 
 def test_recorded_innovations_equal_filterpy_kalman_filter_on_a_linear_model():
-    """_NisUkf's normalised innovations y_j / sqrt(S_jj) of rows 2-5 of a 6-row measurement on a linear model,
+    """_InnovationUkf's normalised innovations y_j / sqrt(S_jj) of rows 2-5 of a 6-row measurement on a linear model,
     where the UKF is the Kalman filter: equal to FilterPy's KalmanFilter (its y and S after each update), with
     row 3 missing at some steps (not recorded then)."""
     from filterpy.kalman import KalmanFilter
 
-    from methods.liu2020 import _NisUkf
+    from methods.liu2020 import _InnovationUkf
 
     rng = np.random.default_rng(7)
     n, dt = 6, 0.1
@@ -529,7 +529,7 @@ def test_recorded_innovations_equal_filterpy_kalman_filter_on_a_linear_model():
     Q = np.diag(rng.uniform(0.01, 0.1, n))
     R = np.diag(rng.uniform(0.05, 0.2, n))
     P0 = np.eye(n)
-    ukf = _NisUkf(lambda sig, dt_, u: sig @ F.T, lambda sig: sig.copy(), np.zeros(n), P0, Q, R)
+    ukf = _InnovationUkf(lambda sig, dt_, u: sig @ F.T, lambda sig: sig.copy(), np.zeros(n), P0, Q, R)
     kf = KalmanFilter(dim_x=n, dim_z=n)
     kf.F, kf.H, kf.Q, kf.P, kf.x = F, np.eye(n), Q, P0.copy(), np.zeros(n)
     ref: dict[int, list[float]] = {j: [] for j in ukf.innovations}
