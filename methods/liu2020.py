@@ -31,6 +31,7 @@ Paper equation -> code
     (12), (13a-f), (30) process model         liu_fx
     (15)-(24)    UKF                          bench.ukf.Ukf
     (25)-(29)    multi-innovation update      bench.ukf.Ukf(mi_weights=bench.ukf.mi_weights(2, 0.5))
+    (not Liu's)  MI covariance incl. (28)     bench.ukf.Ukf(mi_covariance=True) (consistent configuration)
     (31), (32), Appendix  measurement model   liu_hx, LiuUkfParams.r_gnss / r_encoder, _gnss_block,
                                               run_liu_filter (encoder-ICR pseudo-measurement)
     [-20, 20] ICR clamp (Sec. V-B-3)          LiuUkfParams.icr_clamp
@@ -398,6 +399,9 @@ class LiuUkfParams:
     # ICR accepted only when y_l - y_r >= max(icr_min_separation, icr_min_expansion * B) (B: track);
     # 1.0 = the expansion factor chi = (y_l - y_r)/B of a skid-steered vehicle is at least 1
     icr_min_expansion: float = 0.0
+    # MI-UKF covariance that includes the re-applied past correction of eq. (28) (bench.ukf.Ukf mi_covariance;
+    # p = 2 only); False: eq. (24), the current gain only (paper)
+    mi_covariance: bool = False
 
     def __post_init__(self) -> None:
         if self.innovation_length < 1:
@@ -582,7 +586,8 @@ def run_liu_filter(run: Run, p: LiuUkfParams, name: str = "liu2020.mi_ukf", make
         x_init += [0.0, 0.0]
     kf = make_filter(fx, hx, x_init, P0, np.diag(qc), R, sigma=p.sigma,
                      x_angles=(2,), z_angles=(2, 8), joseph=p.joseph, gate=p.gate,
-                     mi_weights=mi_weights(p.innovation_length, p.mi_a))
+                     mi_weights=mi_weights(p.innovation_length, p.mi_a),
+                     **({"mi_covariance": True} if p.mi_covariance else {}))
     enc_pose = bool(p.encoder_pose)
 
     X = np.empty((T, 6))
@@ -896,10 +901,11 @@ def match_process_noise(runs: Sequence[Run], params: LiuUkfParams, name: str = "
       spread: the yaw rate is piecewise constant with fast transitions, not the random walk (13c), and a walk
       that follows the transitions overstates the quiet steps' prior), yet the posterior yaw-rate NEES is ~1
       (0.97 on the calibration run) where the level criterion's is ~0.8: whiteness is kept for all rows.
-    * MI-UKF (p > 1): level.  Its update re-applies past corrections (eq. (28)), so its innovations are
-      correlated whatever Q is and whiteness is no criterion; q is set so that the mean normalised
-      innovation squared per row is 1: the predicted S then covers the spread the multi-innovation
-      correction adds (its covariance update is the UKF's, eq. (24), which does not contain it).
+    * MI-UKF (p > 1): level.  Its update re-applies past corrections (eq. (28)), so its gain is not the
+      optimal one and its innovations are correlated whatever Q is: whiteness is no criterion.  q is set so
+      that the mean normalised innovation squared per row is 1, the condition E[NIS] = 1 of any consistent
+      filter; with ``mi_covariance`` (the consistent configuration) the predicted S contains the error of the
+      re-applied correction, otherwise (eq. (24)) the level criterion covers it only on average.
 
     Root search per block in log q (all blocks share each filter pass; they are weakly coupled): decade
     steps until the sign changes, then regula falsi inside the bracket, at most ``iterations`` passes or
@@ -976,6 +982,9 @@ class _LiuUkfConsistent(_LiuUkf):
       receiver's, its 0.3 rad GNSS heading far above it), and the encoder-ICR velocities with their
       identified error inflated by the effective-sample factor of its correlation time;
 
+    * MI-UKF: the covariance includes the error of the re-applied past correction of eq. (28)
+      (``mi_covariance``, :class:`bench.ukf.Ukf`), which eq. (24) leaves out (then the covariance is
+      that of a different, single-innovation update);
     * process noise of heading, velocity and yaw rate from the innovations on the same calibration runs
       (:func:`match_process_noise`: whiteness for the UKF+ICR, level for the MI-UKF, whose own update
       re-applies past corrections); ``q_pos`` and the ICR guards are the paper filter's (:class:`LiuUkfParams`).
@@ -1014,5 +1023,5 @@ class UkfIcrConsistent(_LiuUkfConsistent):
 class MiUkfConsistent(_LiuUkfConsistent):
     """MI-UKF (p = 2, a = 0.5) in the consistent configuration."""
 
-    params: LiuUkfParams = LiuUkfParams(innovation_length=2, mi_a=0.5, encoder_pose=False)
+    params: LiuUkfParams = LiuUkfParams(innovation_length=2, mi_a=0.5, encoder_pose=False, mi_covariance=True)
     name: ClassVar[str] = "liu2020.mi_ukf_consistent"

@@ -556,8 +556,10 @@ _CAUSES = {
              "random walk represents only on average)",
     "q_pos": "its process noise q_pos is the paper filter's, not identified (the GNSS position rows measure position "
              "plus the GNSS bias)",
-    "mi": "the multi-innovation correction (28) re-applies past corrections; its error is not in the UKF covariance "
-          "(24), and the level criterion covers it only on average",
+    "easier": "near nominal on the calibration run but overconfident here: the scored path has model error that the "
+              "constant process noise identified on the calibration path does not cover",
+    "calib_over": "already overconfident on the calibration run, where the process noise is identified (the "
+                  "criterion holds on the innovations, not on this block's error)",
 }
 
 
@@ -593,8 +595,8 @@ def _nees_cause(out: Mapping[str, float], noise: Mapping[str, Any], qs: Mapping[
                     why.setdefault("calib", []).append(names[b])
                 elif v < 0.9 * c:
                     why.setdefault("harder", []).append(names[b])
-            if b == "vel" and v > nominal[b] and level:
-                why.setdefault("mi", []).append(names[b])
+            elif v > nominal[b] and math.isfinite(c) and b != "pos":
+                why.setdefault("calib_over" if c > 1.25 * nominal[b] else "easier", []).append(names[b])
         if parts:
             sentences.append(f"{LABELS[f]} off nominal on s2: " + "; ".join(parts) + "".join(
                 f". {' and '.join(bl).capitalize()}: {_CAUSES[c]}" for c, bl in why.items()))

@@ -37,15 +37,16 @@ Map: paper equation -> code
                                                                      :meth:`Yi2009Ekf.calibrate`
     Fig. 5         variants 1/2/3                                 -> ``Yi2009Ekf(variant=...)``,
                                                                      :func:`ekf_v1`, :func:`ekf_v2`, :func:`ekf_v3`
-    (not Yi's)     consistent configuration (issue 4): the v_x (13) / v_y (15) pseudo-measurement errors as
-                   first-order Gauss-Markov states, IMU noise and levelling precision identified on calibration
-                   runs against the reference sensor   -> :class:`GaussMarkov`, :func:`run_filter_gm`,
+    (not Yi's)     consistent configuration (issue 4): slip as a state, the v_x (13) / v_y (15) pseudo-measurement
+                   errors as first-order Gauss-Markov states, encoder quantisation states, roll Jacobian at the
+                   modelled v_By, IMU noise and levelling precision identified on calibration runs against the
+                   reference sensor                    -> :class:`GaussMarkov`, :func:`run_filter_gm`,
                                                           :func:`identify_yi_noise`, :func:`gauss_markov_fit`,
-                                                          :func:`high_frequency_var`, :func:`ar1_detrended_var`,
+                                                          :func:`moving_mean_var`, :func:`ar1_mean_var_factor`,
                                                           :func:`static_imu_noise`, :func:`at_rest_start`,
-                                                          :func:`encoder_white_floor`,
+                                                          :func:`encoder_white_floor`, :func:`encoder_quantisation`,
                                                           :func:`reference_body_velocity`,
-                                                          :func:`pseudo_measurements`,
+                                                          :func:`reference_velocity_noise_mean_var`,
                                                           :class:`Yi2009EkfConsistent`,
                                                           :func:`ekf_v1_consistent` .. ``_v3_consistent``
 
@@ -78,21 +79,28 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     correlation time of seconds (net slip in scheme 1; in schemes 2-3 the fed-back slip makes it
     the filter's own previous velocity error, bounded only by (14)), and scheme 3's v_y row (15)
     carries the S(gamma) error, also a slowly varying bias, fused as white with sigma_2 = 0.05 m/s.
-    :class:`Yi2009EkfConsistent` keeps the rows, the slip feedback and S(gamma), and models those errors
-    as first-order Gauss-Markov states (state augmentation for autocorrelated measurement noise: Gelb 1974
-    Sec. 3.8, Bar-Shalom, Li, Kirubarajan 2001 Sec. 8.4), :func:`run_filter_gm`, a separate loop so that
-    :func:`run_filter` (the paper path) is untouched (not fusing a v_x row whose constrained slip (14) is at the
-    +-1 clip of (6) is an option, ``skip_saturated``, off: measured, it made the straight path worse).
-    Inflating a white R by the effective-sample factor (1 + rho)/(1 - rho) instead (the previous version) gave R of
-    metres per second wherever the calibration data contain a bias, i.e. a filter that ignores the encoders.  sigma,
-    tau and the white part of each row, the IMU white noise (Q) and the levelling precision (P0) are identified on
-    calibration runs against the reference sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated
-    runs scenarios/yi_calib.toml and yi_calib_steps.toml).  What it cannot represent (measured, see the nees
-    note): with fed-back slip the v_x row's error IS the filter's own velocity error (correlated with the
-    state, not an independent process); once the slip is locked at the clip ((13) then reads ~0 whatever the
-    speed, which holds the estimate low: a self-locking loop on a straight line, see the nees note for the
-    measured effect); and the lateral velocity of schemes 1-2, observed only through roll in the
-    v_z row linearised at the estimate.
+    :class:`Yi2009EkfConsistent` (:func:`run_filter_gm`, a separate loop so that :func:`run_filter`, the paper
+    path, is untouched) keeps the strapdown prediction, the rows and S(gamma), and (1) estimates the slip as the
+    Gauss-Markov error state of the v_x row instead of feeding it back (the fed-back row is a copy of the prior and
+    self-locks at the +1 clip); (2) models the correlated row errors as first-order Gauss-Markov states (state
+    augmentation for autocorrelated measurement noise: Gelb 1974 Sec. 3.8, Bar-Shalom, Li, Kirubarajan 2001
+    Sec. 8.4); (3) optionally carries the encoder quantisation, a count difference u_k - u_(k-1), in two states
+    (off: measured, no effect on the scored paths); (4) evaluates
+    the roll column of the v_z row at the modelled v_By = 0 in schemes 1-2 (otherwise roll becomes spuriously
+    observable through a drifted v_By estimate: measured on the straight line, the roll error 2.3x the claimed sd,
+    gravity leaking into v_By and a position RMS of 11.7 m).  sigma, tau and the white part of each row (from
+    moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
+    white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
+    sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated runs scenarios/yi_calib.toml and
+    yi_calib_steps.toml).  Earlier versions, measured and replaced (see the nees note for their numbers): white R
+    inflated by (1 + rho)/(1 - rho) (R of metres per second wherever the calibration data contain a bias); the
+    slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time); skipping
+    the rows at the clip (the lock stays, position RMS 14 m); a two-lag autocovariance fit of sigma, tau (unstable
+    at this noise level, sigma 4x the moving-mean estimate).  Tried and not kept: scheme 3's v_y error as a
+    Gauss-Markov state on the S error itself [m], multiplied by the yaw rate (the structure of (15): zero error on a
+    straight line); S changes with the manoeuvre (speed, curvature) while the identified state is nearly a bias
+    (tau ~ 300 s), so it learns S within a run and becomes overconfident (mean NEES 9-10 on its own calibration
+    runs, consistent 2).
 
 Variants (Fig. 5, Sec. V-C)
     1: v_x (13) without slip (lambda' = 0) and v_z (11);  2: v_x with slip feedback (13)-(14) and
@@ -116,7 +124,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, ClassVar, Mapping, Sequence
+from typing import Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -768,21 +776,28 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     return (np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan), var)
 
 
-def pseudo_measurements(est_slip: np.ndarray, s_icr: np.ndarray, yaw_rate: np.ndarray, enc: np.ndarray,
-                        wheel_radius: float, variant: int) -> tuple[np.ndarray, np.ndarray]:
-    """The v_x (13) and v_y (15) pseudo-measurements the filter fused at each step, rebuilt from its
-    output: slip lambda(k-1) (posterior of the previous step, eq. (6)) constrained by (14) with the
-    wheel speeds of step k; v_y = -S yaw_rate (15) with the S(gamma) of the step (variant 3, else NaN).
-    (The yaw rate here is the posterior's (10e); the filter uses the prior's attitude: same gyro sample.)"""
-    lam = np.vstack((np.zeros((1, 2)), np.nan_to_num(est_slip[:-1])))
-    wl, wr = enc[:, 0], enc[:, 1]
-    if variant >= 2:
-        pl, pr = constrained_slip(lam[:, 0], lam[:, 1], wl, wr)
-    else:
-        pl = pr = np.zeros(wl.size)
-    y_x = 0.5 * wheel_radius * (wl * (1.0 - pl) + wr * (1.0 - pr))
-    y_y = -s_icr * yaw_rate if variant == 3 else np.full(wl.size, np.nan)
-    return y_x, y_y
+def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, polyorder: int = 2
+                                      ) -> Callable[[int], float]:
+    """Variance of the W-sample mean (filter grid ``dt``) of the noise of :func:`reference_body_velocity` per axis:
+    the Savitzky-Golay derivative of white position noise (``reference_position_noise``) has the autocovariance
+    pos_noise^2 sum_k c_k c_(k+m) at m reference samples (zero beyond the window), interpolated to the filter's
+    lags; returns W -> (1/W^2) sum_i sum_j acov(|i - j| dt)."""
+    from scipy.signal import savgol_coeffs
+
+    d = run.data
+    ok = np.isfinite(d["ref_x"].to_numpy())
+    h = float(np.median(np.diff(run.t[ok])))
+    win = max(polyorder + 2, int(round(window / h)) | 1)
+    coef = savgol_coeffs(win, polyorder, deriv=1, delta=h, use="dot")
+    ac_ref = np.array([float(coef[:win - m] @ coef[m:]) for m in range(win)] + [0.0])
+    s2 = reference_position_noise(run) ** 2
+
+    def mean_var(w: int) -> float:
+        m = np.arange(int(w))
+        ac = s2 * np.interp(m * dt / h, np.arange(win + 1), ac_ref, right=0.0)
+        return float((w * ac[0] + 2.0 * np.sum((w - m[1:]) * ac[1:])) / (w * w))
+
+    return mean_var
 
 
 @dataclass(frozen=True)
@@ -805,139 +820,162 @@ class GaussMarkov:
 
 
 GM_NEGLIGIBLE_SIGMA = 1e-4  # [m/s] sigma of a correlated part that is not resolved (kept > 0 for the state)
-GM_MIN_DECAY = 0.05  # a^L below this: tau << lag, the decay is not resolvable at these lags
 
 
-def _nan_autocov(res: Sequence[np.ndarray], lags: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Pooled sums of e(k) e(k + L) and pair counts over the series, using only pairs with both values finite
-    (NaN marks a masked step on the full time grid, so lags stay lags in time)."""
-    c = np.zeros(len(lags))
-    n = np.zeros(len(lags))
+def moving_mean_var(res: Sequence[np.ndarray], window: int, min_fraction: float = 1.0) -> float:
+    """Mean square of the centred ``window``-sample moving mean of the series (mean kept), pooled over the series
+    and over the windows with at least ``min_fraction`` of their samples finite (NaN = masked step on the full time
+    grid; the mean is over the finite samples)."""
+    tot, n_win = 0.0, 0
+    k = np.ones(int(window))
     for e in res:
         e = np.asarray(e, float)
+        if e.size < window:
+            continue
         ok = np.isfinite(e)
-        z = np.where(ok, e, 0.0)
-        for i, L in enumerate(lags):
-            if e.size <= L:
-                continue
-            c[i] += float(z[L:] @ z[:e.size - L])
-            n[i] += float(np.count_nonzero(ok[L:] & ok[:e.size - L]))
-    return c, n
+        cnt = np.convolve(ok.astype(float), k, mode="valid")
+        use = cnt >= max(min_fraction * window, 0.5)
+        m = np.convolve(np.where(ok, e, 0.0), k, mode="valid")[use] / cnt[use]
+        tot += float(m @ m)
+        n_win += int(m.size)
+    if n_win == 0:
+        raise ValueError(f"moving_mean_var: no window of {window} samples with >= {min_fraction:.0%} finite")
+    return tot / n_win
 
 
-def gauss_markov_fit(res: Sequence[np.ndarray], dt: float, lag_time: float, white_window: int,
-                     white_floor: float = 0.0) -> GaussMarkov:
-    """White + first-order Gauss-Markov model of residual series sampled every ``dt`` s on a uniform grid (NaN =
-    masked step; mean kept: a bias is the limit tau -> inf and must be covered).  Autocovariances pooled over the
-    series from the finite pairs (:func:`_nan_autocov`) at lags L = round(lag_time/dt) and 2L (beyond the reach of
-    the reference derivative's own correlated noise and of the encoders' MA(1) quantisation noise):
-    C(L) = s^2 a^L, C(2L) = s^2 a^2L, so a^L = C(2L)/C(L), s^2 = min(C(L)/a^L, C(0)) (a correlated part cannot
-    exceed the total variance), tau = -L dT / ln(a^L).  a^L is capped at 0.999 (no decay within 2L: a bias); when
-    C(L) <= 0, C(2L) <= 0 or a^L < ``GM_MIN_DECAY`` (tau unresolvable at these lags) there is no Gauss-Markov
-    state to fit (sigma = ``GM_NEGLIGIBLE_SIGMA``, tau = lag_time).
-    White part: at least C(0) - s^2 (the variance the Gauss-Markov state does not carry: an error correlated over
-    less than the lags is covered by R, not dropped), and at least the series' variance about its centred moving
-    average over ``white_window`` samples (odd; :func:`high_frequency_var`) minus what the fitted Gauss-Markov part
-    leaves there (closed form :func:`ar1_detrended_var`); floored at ``white_floor`` [m/s] (a physical lower bound
-    of the row's white noise, ``white_floored`` set when it applies; a tiny positive floor when 0)."""
-    if not (dt > 0 and lag_time > 0):
-        raise ValueError(f"gauss_markov_fit: dt = {dt!r} and lag_time = {lag_time!r} must be > 0")
-    lag = max(1, int(round(lag_time / dt)))
-    used = [np.asarray(e, float) for e in res if np.asarray(e).size > 2 * lag]
-    c, n = _nan_autocov(used, (0, lag, 2 * lag))
-    if n[2] == 0:
-        raise ValueError(f"gauss_markov_fit: no residual series longer than 2 lags ({2 * lag} samples)")
-    c0, cl, c2l = c / n
-    aL = min(c2l / cl, 0.999) if cl > 0 and c2l > 0 else 0.0
-    if aL < GM_MIN_DECAY:
-        s2, tau = GM_NEGLIGIBLE_SIGMA**2, lag_time
-    else:
-        s2 = min(cl / aL, c0)
-        tau = -lag * dt / math.log(aL)
-    w = int(white_window)
-    hf = [(high_frequency_var(e, w), np.count_nonzero(np.isfinite(e))) for e in used]
-    hf_var = float(np.average([h for h, _ in hf], weights=[m for _, m in hf]))
-    white2 = max(hf_var - ar1_detrended_var(s2, math.exp(-dt / tau), w) * w / (w - 1), c0 - s2)
+def ar1_mean_var_factor(a: float, window: int) -> float:
+    """Variance of the mean of ``window`` consecutive samples of a stationary AR(1) of unit variance and lag-1
+    correlation ``a``: (W + 2 sum_{m=1}^{W-1} (W - m) a^m) / W^2."""
+    m = np.arange(1, int(window))
+    return float((window + 2.0 * np.sum((window - m) * a**m)) / window**2)
+
+
+def gauss_markov_fit(res: Sequence[np.ndarray], dt: float, windows: Sequence[float],
+                     known_var: Callable[[int], float] | None = None, white_floor: float = 0.0,
+                     min_fraction: float = 1.0) -> GaussMarkov:
+    """White + first-order Gauss-Markov model of residual series on a uniform grid (NaN = masked step; mean kept)
+    from the variance of their moving means over ``windows`` [s] (the averaging-time method of the Allan variance,
+    IEEE Std 952-1997 Annex C, with overlapping windows): V(W) = sigma^2 g(a, W) + white^2 / W + K(W), where
+    g = :func:`ar1_mean_var_factor`, a = exp(-dT/tau) and K(W) = ``known_var(W)`` the variance of the W-sample
+    mean of the error parts that are known and independent of the row's (the reference derivative's noise, the
+    encoder quantisation).  white^2 = C(0) - K(1) - sigma^2 (floored at ``white_floor``, flagged when it applies).
+    (sigma, tau) minimise the squared log-ratio of model and data over the windows (scipy.optimize.least_squares,
+    starts tau = 0.3, 3, 30 s); tau is bounded to [min(windows)/2, 100 max(windows)]: a shorter correlation is not
+    resolved by the windows (there it acts as white noise and the fit represents its low-frequency power), a longer
+    one is a bias (mean kept).  Windows whose data K explains entirely give sigma -> 0 (``GM_NEGLIGIBLE_SIGMA``).
+    ``min_fraction``: least share of finite samples in a window (:func:`moving_mean_var`); windows that no series
+    fills are dropped (ValueError when fewer than 2 remain).
+    Replaces the two-lag autocovariance fit (C(L), C(2L) at 1.25 / 2.5 s) of the previous version: with the
+    row's correlated error at the level of the sampling noise of C(L), the ratio C(2L)/C(L) was unstable (sigma
+    0.014 m/s on the v_x row of the calibration runs where the 2-16 s moving means give 0.003 m/s)."""
+    from scipy.optimize import least_squares
+
+    if not (dt > 0 and len(windows) >= 2):
+        raise ValueError(f"gauss_markov_fit: dt = {dt!r} must be > 0 and at least 2 windows, got {windows!r}")
+    kv = known_var or (lambda w: 0.0)
+    c0 = moving_mean_var(res, 1)
+    ws, v_l = [], []
+    for wsec in windows:  # windows without a single qualifying stretch in any series are dropped
+        w = max(1, int(round(wsec / dt)))
+        try:
+            v_l.append(moving_mean_var(res, w, min_fraction) - kv(w))
+        except ValueError:
+            continue
+        ws.append(w)
+    if len(ws) < 2:
+        raise ValueError(f"gauss_markov_fit: no window of the {list(windows)} s with >= {min_fraction:.0%} finite "
+                         f"samples for at least 2 of them (series of {[np.asarray(e).size for e in res]} samples)")
+    windows = [w * dt for w in ws]
+    v = np.array(v_l)
     floor = max(float(white_floor), 1e-6)
-    floored = white2 < floor**2
+    vmin = 1e-4 * max(c0, 1e-30)
+    v_fit = np.maximum(v, vmin)
+
+    def model(p: np.ndarray) -> np.ndarray:
+        s2, tau = math.exp(p[0]), math.exp(p[1])
+        a = math.exp(-dt / tau)
+        w2 = max(c0 - kv(1) - s2, floor**2)
+        return np.array([s2 * ar1_mean_var_factor(a, w) + w2 / w for w in ws])
+
+    lo, hi = np.log([1e-14, 0.5 * min(windows)]), np.log([max(c0, 1e-13), 100.0 * max(windows)])
+    best = None
+    for tau0 in (0.3, 3.0, 30.0):
+        x0 = np.clip(np.log([max(v_fit[-1], 1e-13), tau0]), lo + 1e-9, hi - 1e-9)
+        fit = least_squares(lambda p: np.log(model(p)) - np.log(v_fit), x0, bounds=(lo, hi))
+        if best is None or fit.cost < best.cost:
+            best = fit
+    s2, tau = math.exp(best.x[0]), math.exp(best.x[1])
+    white2 = c0 - kv(1) - s2
     return GaussMarkov(math.sqrt(max(s2, GM_NEGLIGIBLE_SIGMA**2)), tau, math.sqrt(max(white2, floor**2)),
-                       bool(floored and white_floor > 0))
+                       bool(white2 < floor**2 and white_floor > 0))
 
 
-def high_frequency_var(y: np.ndarray, window: int) -> float:
-    """Variance of ``y`` about its centred moving average over ``window`` samples (odd; edges dropped), NaN-aware:
-    at each finite centre the average is over the m >= 3 finite samples of the window and the squared deviation is
-    scaled by m/(m - 1), so that for a white series the expectation is its variance (for a masked correlated
-    series the Gauss-Markov share of :func:`ar1_detrended_var`, computed for the full window, is approximate)."""
-    y = np.asarray(y, float)
-    if window < 3 or window % 2 == 0 or y.size < 2 * window:
-        raise ValueError(f"high_frequency_var: window {window} must be odd, >= 3 and <= half of the {y.size} samples")
-    h = window // 2
-    ok = np.isfinite(y)
-    k = np.full(window, 1.0)
-    cnt = np.convolve(ok.astype(float), k, mode="valid")
-    tot = np.convolve(np.where(ok, y, 0.0), k, mode="valid")
-    yc = y[h:h + cnt.size]
-    use = np.isfinite(yc) & (cnt > 2.5)
-    if not np.any(use):
-        raise ValueError(f"high_frequency_var: no window of {window} samples with >= 3 finite values")
-    m = cnt[use]
-    d = yc[use] - tot[use] / m
-    return float(np.mean(d**2 * m / (m - 1.0)))
-
-
-def ar1_detrended_var(var: float, a: float, window: int) -> float:
-    """E[(x_k - mean_{|j| <= h} x_{k+j})^2] of a stationary AR(1) x (variance ``var``, lag-1 correlation ``a``)
-    for a centred moving average over ``window`` = 2h + 1 samples:
-    var (1 - (2/w) sum_j a^|j| + (1/w^2) sum_i sum_j a^|i - j|)."""
-    j = np.arange(window) - window // 2
-    r = a ** np.abs(j)
-    rr = a ** np.abs(j[:, None] - j[None, :])
-    return float(var * (1.0 - 2.0 * r.mean() + rr.mean()))
-
-
-SLIP_CLIP_TOL = 1e-9  # |lambda'| >= 1 - tol: the slip (6) is at its clip (consistent configuration only)
+SLIP_CLIP_TOL = 1e-9  # |lambda| >= 1 - tol: the slip (6) is at its clip (diagnostics of the consistent configuration)
+SLIP_ROWS = ("feedback", "state")  # v_x row of run_filter_gm: Yi's (13) with fed-back slip / slip as the b_x state
 
 
 def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
                   track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
                   gm_x: GaussMarkov, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
-                  skip_saturated: bool = False
+                  slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0
                   ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
 
-    State (P_I, V_I, phi, theta, psi, b_x[, b_y]): b_x is the correlated error of the v_x row (13), b_y of
-    the v_y row (15) (scheme 3; ``gm_y`` required then).  Prediction of b: a = exp(-dT/tau), Q_b = sigma^2
-    (1 - a^2); measurement y_x = v_Bx + b_x + white (R = gm_x.white^2), y_y = v_By + b_y + white.  Everything
-    else (strapdown (10), slip feedback (3)-(6), (14), S(gamma) (40)-(41), the v_z row (11) with sigma_vz,
-    Joseph update, yaw wrap) is :func:`run_filter`'s.  ``skip_saturated`` True (experiment, not the default): at
-    a step where a constrained slip lambda' of (14) used in (13) is at the +-1 clip of (6) (|lambda'| >= 1 -
-    ``SLIP_CLIP_TOL``), (13) is a bound, not a measurement of v_x (it then reads ~0 whatever the speed: the
-    self-locking loop low v_hat -> lambda = 1 -> y_x = 0 -> low v_hat), so the v_x row is not fused, nor (scheme
-    3) the v_y row, whose S(gamma) (40)-(41) is evaluated with the same clipped slips.  Measured on the straight
-    path (5 seeds): 90 % of the rows skipped in schemes 2-3, no cell more consistent, and the position RMS of
-    scheme 3 up from 2.2 to 14.0 m (the lock stays and the speed is then dead-reckoned from the IMU), so it is
-    off.  Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n,
-    nb), skipped (n, 2) bool: v_x / v_y row dropped at the clip, all False unless ``skip_saturated``)."""
+    State (P_I, V_I, phi, theta, psi, b_x[, b_y][, u_prev, u]): b_x is the correlated error of the v_x row (13),
+    b_y of the v_y row (15) (scheme 3; ``gm_y`` required then).  Prediction of b: a = exp(-dT/tau), Q_b = sigma^2
+    (1 - a^2); measurement y_x = v_Bx + b_x [+ u_k - u_(k-1)] + white (R = gm_x.white^2), y_y = v_By + b_y + white.
+    Everything else (strapdown (10), S(gamma) (40)-(41), the v_z row (11) with sigma_vz, Joseph update, yaw wrap)
+    is :func:`run_filter`'s, except where an option below says otherwise.
+
+    ``slip_rows`` "feedback" (Yi's (13)-(14)): v_x = r (w_L (1 - lambda'_L) + w_R (1 - lambda'_R))/2 with the
+    constrained slips lambda' (14) of the previous posterior.  Where (14) keeps the fed-back slip lambda(k-1),
+    r w (1 - lambda) is the filter's own contact velocity of step k-1 (eq. (6) inverted): the row is a copy of the
+    previous posterior, with no new information; fused as a measurement it counts the prior again, and at the +1
+    clip of (6) it reads 0 whatever the speed and holds the estimate there (the self-locking loop of the nees
+    note).  "state": the slip is not fed back (lambda' = 0 in (13) and in gamma (40)): the net slip velocity
+    r (lambda_L w_L + lambda_R w_R)/2 is the Gauss-Markov state -b_x, estimated with its covariance like any other
+    error state; the slips (6) are still output from the posterior.  With "state", schemes 1 and 2 fuse the same
+    rows (scheme 2's distinction is the feedback).  (Tried and not kept: fusing only the wheels whose slip (14)
+    sets to zero, i.e. the sign bounds of (14) as active inequality constraints: on the straight path both sides
+    keep traction slip, nothing anchors the speed from below and it drifts; position RMS 18 m, 5 seeds.)
+    ``roll_model_jacobian`` (schemes 1-2 only): the roll column of the v_z row (11), -v_By, is evaluated at
+    v_By = 0, the lateral velocity these schemes assume (no lateral slip is modelled; Yi's (15) with S = 0),
+    instead of at the estimate.  Schemes 1-2 measure neither v_By nor roll, so at the true state (v_By ~ 0 on a
+    straight line) the pair (roll, v_By) is unobservable; linearised at a drifted estimate v_By the v_z row
+    reports roll information that does not exist and the filter becomes overconfident in roll while gravity leaks
+    into v_By (the first-estimates / observability-constrained EKF argument: Huang, Mourikis, Roumeliotis 2010,
+    IJRR 29(5)).  Scheme 3 measures v_By, so its Jacobian is left at the estimate.
+    ``enc_quant`` > 0 [m/s]: the encoder quantisation of the v_x row as states (:func:`encoder_quantisation`).
+    Each wheel speed is a count difference over the sample interval, so its quantisation error is u_k - u_(k-1)
+    with u_k the residual of the count at sample k (uniform, independent between samples): a moving-average error
+    whose sum over N samples telescopes to (u_N - u_0), which a white R would let shrink only as sqrt(N).  At each
+    fused v_x row a fresh u_k ~ N(0, enc_quant^2) enters the state (row +1 on u, -1 on u_prev), and after the
+    update it becomes u_prev of the next row (augmentation for moving-average measurement noise: Bar-Shalom, Li,
+    Kirubarajan 2001 Sec. 8.4).
+    Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
+    rows (n, 2): the v_x and v_y rows fused at each step, NaN where not fused)."""
     if variant not in (1, 2, 3):
         raise ValueError(f"variant = {variant!r}: must be 1, 2 or 3 (Fig. 5)")
     if variant == 3 and gm_y is None:
         raise ValueError("run_filter_gm: scheme 3 needs gm_y (the v_y row's Gauss-Markov error)")
+    if slip_rows not in SLIP_ROWS:
+        raise ValueError(f"run_filter_gm: slip_rows = {slip_rows!r}: must be one of {SLIP_ROWS}")
+    if not (math.isfinite(enc_quant) and enc_quant >= 0):
+        raise ValueError(f"run_filter_gm: enc_quant = {enc_quant!r}: must be finite and >= 0")
     n = int(t.size)
     r, hw = float(wheel_radius), 0.5 * float(track)
     use_slip, use_vy = variant >= 2, variant == 3
     nb = 2 if use_vy else 1
-    nx = 9 + nb
+    nq = 2 if enc_quant > 0 else 0  # quantisation residuals (previous, current) of the v_x row
+    nx = 9 + nb + nq
+    iqc, iqu = 9 + nb, 10 + nb
     a1, a2, a3 = s_gamma.a1, s_gamma.a2, s_gamma.a3
     g = params.gravity
     vmin = params.min_wheel_speed
     gms = (gm_x, gm_y) if use_vy else (gm_x,)
-    q_const = np.array([params.pos_noise**2] * 3 + [0.0] * (6 + nb))
-    q_dt2 = np.array([0.0] * 3 + [params.accel_noise**2] * 3 + [params.gyro_noise**2] * 3 + [0.0] * nb)
+    q_const = np.array([params.pos_noise**2] * 3 + [0.0] * (6 + nb + nq))
+    q_dt2 = np.array([0.0] * 3 + [params.accel_noise**2] * 3 + [params.gyro_noise**2] * 3 + [0.0] * (nb + nq))
     r_all = (gm_x.white**2, gm_y.white**2 if use_vy else 0.0, params.sigma_vz**2)
-    rows_enc = (0, 1, 2) if use_vy else (0, 2)
-    r_mat = {rows: np.diag([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
-    r_vec = {rows: np.array([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
 
     t_l, acc_l, gyr_l, enc_l = t.tolist(), acc.tolist(), gyr.tolist(), enc.tolist()
     enc_ok = np.isfinite(enc).all(axis=1).tolist()
@@ -954,14 +992,22 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     i56, i57, i66, i67, i76, i86, i87 = ix(5, 6), ix(5, 7), ix(6, 6), ix(6, 7), ix(7, 6), ix(8, 6), ix(8, 7)
     ib = [ix(9 + j, 9 + j) for j in range(nb)]
     zb = (0.0,) * nb
-    ex = (1.0, 0.0)[:nb]
+    ex = (1.0, 0.0)[:nb] + ((-1.0, 1.0) if nq else ())
     ey = (0.0, 1.0)
+    zq = (0.0,) * nq
+    shift_q = np.eye(nx)
+    if nq:
+        shift_q[iqc, iqc], shift_q[iqc, iqu], shift_q[iqu, iqu] = 0.0, 1.0, 0.0
+        var_q = enc_quant**2
     P = np.zeros((nx, nx))
     P[:9, :9] = p0
     for j, gmj in enumerate(gms):
         P[9 + j, 9 + j] = gmj.sigma**2
     px, py, pz, vx, vy, vz, phi, th, psi = (float(v) for v in x0)
     b = [0.0] * nb
+    qc = qu = 0.0
+    if nq:
+        P[iqc, iqc] = P[iqu, iqu] = enc_quant**2
     lam_l = lam_r = 0.0
     w_l = w_r = math.nan
     s_cur = math.nan
@@ -970,14 +1016,15 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         den = r * (w_l + w_r)
         s_cur = a1 / (a2 * abs(r * (w_l - w_r) / den) + a3) if abs(den) > 1e-9 else 0.0
     nxu = nyu = nzu = 0
-    clip = 1.0 - SLIP_CLIP_TOL
+    slip_state = slip_rows == "state"
     two_pi = 2.0 * math.pi
     dt_last, Qk, ab = -1.0, np.zeros((nx, nx)), [1.0] * nb
     potrf, potrs = lapack.dpotrf, lapack.dpotrs
 
     for k in range(n):
         gx, gy, gz = gyr_l[k]
-        sat_k = (0.0, 0.0)
+        row_k = (math.nan, math.nan)
+        x_fused = False
         if k > 0:
             dt = t_l[k] - t_l[k - 1]
             ax, ay, az = acc_l[k - 1]
@@ -993,7 +1040,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             if abs(dt - dt_last) > 1e-9 * dt:
                 ab = [math.exp(-dt / gmj.tau) for gmj in gms]
                 qb = [gmj.sigma**2 * (1.0 - aj * aj) for gmj, aj in zip(gms, ab)]
-                Qk, dt_last = np.diag(q_const + q_dt2 * (dt * dt) + np.array([0.0] * 9 + qb)), dt
+                Qk, dt_last = np.diag(q_const + q_dt2 * (dt * dt) + np.array([0.0] * 9 + qb + [0.0] * nq)), dt
             fl = f_tmpl.copy()
             fl[i03] = fl[i14] = fl[i25] = dt
             fl[i36], fl[i37], fl[i38] = dt * (c13 * ay - c12 * az), dt * cp * c3a, -dt * vdy
@@ -1026,52 +1073,60 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             vby = c12 * vx + c22 * vy + c32 * vz
             vbz = c13 * vx + c23 * vy + c33 * vz
             h_x = (0.0, 0.0, 0.0, c11, c21, c31, 0.0, -st * cp * vx - st * sp * vy - ct * vz, c11 * vy - c21 * vx) + ex
-            h_z = (0.0, 0.0, 0.0, c13, c23, c33, -vby, cf * vbx, c13 * vy - c23 * vx) + zb
+            h_z = (0.0, 0.0, 0.0, c13, c23, c33, 0.0 if roll_model_jacobian and not use_vy else -vby, cf * vbx,
+                   c13 * vy - c23 * vx) + zb + zq
             if enc_ok[k]:
                 w_l, w_r = enc_l[k]
-                if use_slip:
+                if use_slip and not slip_state:
                     pl = (lam_l if lam_l > 0.0 else 0.0) if w_l >= w_r else (lam_l if lam_l < 0.0 else 0.0)
                     pr = (lam_r if lam_r > 0.0 else 0.0) if w_l <= w_r else (lam_r if lam_r < 0.0 else 0.0)
                 else:
                     pl = pr = 0.0
                 y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))
-                sat = skip_saturated and (abs(pl) >= clip or abs(pr) >= clip)
                 if use_vy:
                     v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
                     den = v_lx + v_rx
                     s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0
                     y_y = -s_cur * (sf * gy + cf * gz) / ct
-                    h_y = (0.0, 0.0, 0.0, c12, c22, c32, vbz, sf * vbx, c12 * vy - c22 * vx) + ey
-                if sat:  # (13) at the clip: a bound, no information on v_x (nor on v_y through S(gamma))
-                    H = np.array((h_z,))
-                    innov = np.array((-vbz,))
-                    rows = (2,)
-                    sat_k = (1.0, float(use_vy))
-                elif use_vy:
-                    H = np.array((h_x, h_y, h_z))
-                    innov = np.array((y_x - vbx - b[0], y_y - vby - b[1], -vbz))
-                    rows = rows_enc
-                else:
-                    H = np.array((h_x, h_z))
-                    innov = np.array((y_x - vbx - b[0], -vbz))
-                    rows = rows_enc
-                if not sat:
+                    h_y = (0.0, 0.0, 0.0, c12, c22, c32, vbz, sf * vbx, c12 * vy - c22 * vx) + ey + zq
+                hs, inn, rv = [], [], []
+                if y_x == y_x:
+                    x_fused = True
+                    if nq:  # a fresh quantisation residual u_k (prior N(0, enc_quant^2)); row adds u_k - u_(k-1)
+                        P[iqu, :] = 0.0
+                        P[:, iqu] = 0.0
+                        P[iqu, iqu] = var_q
+                        qu = 0.0
+                    hs.append(h_x)
+                    inn.append(y_x - vbx - b[0] - (qu - qc if nq else 0.0))
+                    rv.append(r_all[0])
                     nxu += 1
-                    nyu += use_vy
+                if use_vy:
+                    hs.append(h_y)
+                    inn.append(y_y - vby - b[1])
+                    rv.append(r_all[1])
+                    nyu += 1
+                row_k = (y_x, y_y if use_vy else math.nan)
+                hs.append(h_z)
+                inn.append(-vbz)
+                rv.append(r_all[2])
+                H = np.array(hs)
+                innov = np.array(inn)
+                r_k = np.array(rv)
             else:
                 H = np.array((h_z,))
                 innov = np.array((-vbz,))
-                rows = (2,)
+                r_k = np.array((r_all[2],))
             nzu += 1
             PHt = P @ H.T
-            S = H @ PHt + r_mat[rows]
+            S = H @ PHt + np.diag(r_k)
             L, info = potrf(S, lower=1)
             d = L.diagonal().tolist()
             if info != 0 or not (all(v > 0.0 for v in d) and math.isfinite(sum(d))):
                 raise FilterDivergence(where, k, t_l[k], f"innovation covariance S not positive definite: {S.tolist()}")
             K = potrs(L, PHt.T, lower=1)[0].T
             IKH = Ix - K @ H
-            P = IKH @ P @ IKH.T + (K * r_vec[rows]) @ K.T
+            P = IKH @ P @ IKH.T + (K * r_k) @ K.T
             P = 0.5 * (P + P.T)
             dx = (K @ innov).tolist()
             px += dx[0]
@@ -1085,6 +1140,10 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             psi += dx[8]
             for j in range(nb):
                 b[j] += dx[9 + j]
+            if nq and x_fused:  # u_k becomes the previous residual of the next v_x row
+                qc = qu + dx[iqu]
+                P = shift_q @ P @ shift_q.T
+                P[iqu, iqu] = var_q
             if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi + sum(b)):
                 raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
             psi = (psi + math.pi) % two_pi - math.pi
@@ -1105,7 +1164,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             sl_l, sl_r = lam_l, lam_r
         else:
             sl_l = sl_r = math.nan
-        out.append((px, py, pz, vx, vy, vz, phi, th, psi, vbx, vby, vbz, psid, sl_l, sl_r, s_cur, *sat_k, *b))
+        out.append((px, py, pz, vx, vy, vz, phi, th, psi, vbx, vby, vbz, psid, sl_l, sl_r, s_cur, *row_k, *b))
         if store_cov:
             covs.append(P)
 
@@ -1113,7 +1172,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
                        np.array(covs) if store_cov else None)
-    return res, o[:, 18:], o[:, 16:18] > 0.5
+    return res, o[:, 18:], o[:, 16:18]
 
 
 def at_rest_start(enc: np.ndarray, wheel_radius: float, params: EkfParams) -> bool:
@@ -1172,14 +1231,29 @@ def encoder_white_floor(run: Run) -> tuple[float, str]:
     return 0.0, "none"
 
 
+def encoder_quantisation(run: Run) -> float:
+    """Std [m/s] of the quantisation residual u of the v_x row (13), r (w_L + w_R)/2, whose error is u_k - u_(k-1):
+    each wheel speed is a count difference times q = 2 pi / counts_per_rev over the sample interval, so its error
+    is the difference of two uniform residuals of r q rate_hz (sd r q rate / sqrt(12) each); the mean of two wheels
+    gives u with sd r q rate / sqrt(24) (``meta.platform.sensors.encoder``).  RunError when the spec is absent."""
+    r = _geometry(run)[0]
+    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
+    spec = spec if isinstance(spec, Mapping) else {}
+    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
+        raise RunError(run.where, "meta platform.sensors.encoder", {"counts_per_rev": cpr, "rate_hz": rate},
+                       "the encoder quantisation states need counts_per_rev and rate_hz (> 0)")
+    return r * 2.0 * math.pi * float(rate) / float(cpr) / math.sqrt(24.0)
+
+
 def _rel_change(new: GaussMarkov | None, old: GaussMarkov | None) -> float:
     if new is None or old is None:
         return 0.0
     return max(abs(new.sigma - old.sigma) / old.sigma, abs(new.tau - old.tau) / old.tau)
 
 
-def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0, lag_time: float = 1.25,
-                      max_iterations: int = 8, tol: float = 0.05, white_window: float = 0.2
+def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0,
+                      windows: Sequence[float] = (2.0, 4.0, 8.0, 16.0), max_iterations: int = 8, tol: float = 0.05
                       ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, dict[str, Any]]:
     """Noise of the consistent configuration identified on calibration runs with the reference sensor
     (never the truth, never a scored run).
@@ -1190,19 +1264,20 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
        When no calibration run starts at rest (e.g. the league's calibration set) the model's ``accel_noise`` /
        ``gyro_noise`` and P0 are kept (``info["imu_noise_source"]`` = "paper default", else "rest").
     2. The v_x (13) and, for scheme 3, v_y (15) pseudo-measurement errors as white + Gauss-Markov
-       (:func:`gauss_markov_fit`): the augmented filter (:func:`run_filter_gm`) is run on each run, the rows it
-       fused are rebuilt (:func:`pseudo_measurements`) and compared with the reference body velocity
-       (:func:`reference_body_velocity`) on the filter's time grid; steps without a fresh encoder pair, before
-       ``settle`` s or outside the reference are NaN, so that lags
-       ``lag_time`` and 2 ``lag_time`` stay lags in time (beyond the 1 s derivative window of the reference,
-       whose own noise is then uncorrelated).  The white part as :func:`gauss_markov_fit` gives it (``white_window``
-       s moving average), floored at a physical bound: v_x row :func:`encoder_white_floor`, v_y row RMS |S(gamma)| x
-       gyro_noise.  Steps with the wheels at rest (r|w| < min_wheel_speed) count as zero error (the row is exact at
-       standstill: both sides 0).  Repeated until sigma and tau of every row change by less than ``tol`` (relative)
-       between passes, at most ``max_iterations`` passes (with slip feedback (13)-(14) the fused row depends on the
-       filter's own velocity); the first pass starts from the paper's sigmas as white parts and sigma = 0.05 m/s,
-       tau = 1 s.  ``info`` reports every pass, the
-       last relative change and whether it converged.
+       (:func:`gauss_markov_fit`, moving-mean variances over ``windows`` s): the augmented filter
+       (:func:`run_filter_gm`, with the model's :meth:`Yi2009EkfConsistent.filter_options`) is run on each run and
+       the rows it fused are compared with the reference body velocity (:func:`reference_body_velocity`) on the
+       filter's time grid; steps without a fused row, before ``settle`` s or outside the reference are NaN.  The
+       known parts of the residual are subtracted at every window: the reference derivative's noise
+       (:func:`reference_velocity_noise_mean_var`) and, with quantisation states, the encoder quantisation
+       u_k - u_(k-1) (variance 2 enc_quant^2 / W^2 for a W-sample mean: it telescopes).  The white part is floored
+       at a physical bound: v_x row :func:`encoder_white_floor` (without quantisation states; with them the
+       quantisation is the states'), v_y row RMS |S(gamma)| x gyro_noise.  Steps with the wheels at rest
+       (r|w| < min_wheel_speed) count as zero error (the row is exact at standstill: both sides 0).  Repeated until
+       sigma and tau of every row change by less than ``tol`` (relative) between passes, at most
+       ``max_iterations`` passes (with slip feedback (13)-(14) the fused row depends on the filter's own velocity);
+       the first pass starts from the paper's sigmas as white parts and sigma = 0.05 m/s, tau = 1 s.  ``info``
+       reports every pass, the last relative change and whether it converged.
     sigma_vz (11) is the paper's (the reference is planar: no v_z reference)."""
     if not runs:
         raise ValueError(f"{model.name}: identify_yi_noise needs at least one calibration run")
@@ -1230,32 +1305,41 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     for it in range(max_iterations):
         res_x: list[np.ndarray] = []
         res_y: list[np.ndarray] = []
-        s_sq, s_n, dts = 0.0, 0, []
+        s_sq, s_n, dts, kvs = 0.0, 0, [], []
         for run in runs:
             r, track = _geometry(run)
             t, acc, gyr, enc = align_inputs(run)
             x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
-            fr, _, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
-                                     s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
-                                     where=run.where)
-            y_x, y_y = pseudo_measurements(fr.slip, fr.s_icr, fr.yaw_rate, enc, r, model.variant)
+            opts = model.filter_options(run)
+            fr, _, fused = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
+                                         s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
+                                         where=run.where, **opts)
+            y_x, y_y = fused[:, 0], fused[:, 1]
             vx, vy, _ = reference_body_velocity(run, t)
+            dt_run = float(np.median(np.diff(t)))
+            kvs.append((reference_velocity_noise_mean_var(run, dt_run), opts["enc_quant"]))
             m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
             moving = m & (r * np.abs(np.nan_to_num(enc)).max(axis=1) >= model.params.min_wheel_speed)
-            res_x.append(np.where(m, np.where(moving, y_x - vx, 0.0), np.nan))
+            res_x.append(np.where(m & np.isfinite(y_x), np.where(moving, y_x - vx, 0.0), np.nan))
             if model.variant == 3:
                 res_y.append(np.where(m, np.where(moving, y_y - vy, 0.0), np.nan))
                 s_sq += float(np.sum(fr.s_icr[moving] ** 2))
                 s_n += int(np.count_nonzero(moving))
-            dts.append(float(np.median(np.diff(t))))
+            dts.append(dt_run)
         dt = float(np.median(dts))
-        win = max(3, int(round(white_window / dt)) | 1)
-        new_x = gauss_markov_fit(res_x, dt, lag_time, win, floor_x)
+
+        def known_x(w: int) -> float:  # reference noise + quantisation (u_k - u_(k-1): its W-mean telescopes)
+            return float(np.mean([f(w) + 2.0 * q * q / (w * w) for f, q in kvs]))
+
+        def known_y(w: int) -> float:  # reference noise
+            return float(np.mean([f(w) for f, _ in kvs]))
+
+        new_x = gauss_markov_fit(res_x, dt, windows, known_x, floor_x if not model.quantisation_states else 0.0)
         new_y = None
         if model.variant == 3:
             floor_y = math.sqrt(s_sq / max(s_n, 1)) * params.gyro_noise
-            new_y = gauss_markov_fit(res_y, dt, lag_time, win, floor_y)
             info["vy_white_floor"] = floor_y
+            new_y = gauss_markov_fit(res_y, dt, windows, known_y, floor_y)
         change = max(_rel_change(new_x, gm_x), _rel_change(new_y, gm_y))
         gm_x, gm_y = new_x, new_y
         info[f"iteration{it}"] = {**{k: asdict(v) for k, v in (("vx", gm_x), ("vy", gm_y)) if v is not None},
@@ -1283,12 +1367,21 @@ def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params
 class Yi2009EkfConsistent(Yi2009Ekf):
     """Yi's EKF scheme 1/2/3 in a consistent configuration (NOT the paper's; issue 4).
 
-    The same measurement rows, slip feedback and S(gamma) as the scheme, but
-    * the correlated errors of the v_x (13) and v_y (15) pseudo-measurements are states (first-order
-      Gauss-Markov, :func:`run_filter_gm`) instead of white noise: their error is a slowly varying bias
-      (net slip in scheme 1, the filter's own fed-back velocity error in schemes 2-3, the S(gamma) error in
-      (15)), and inflating a white R by (1 + rho)/(1 - rho) for it makes R enormous wherever the
-      calibration data slip more than the scored data;
+    The same strapdown prediction and the same measurement rows as the scheme (v_x (13), v_z (11), scheme 3 also
+    v_y (15) with S(gamma)), but (each point an option of :func:`run_filter_gm`; the nees table's ablation switches
+    them one at a time):
+    * ``slip_rows`` = "state": the slip is a state, not fed back.  Yi's feedback makes (13) a copy of the filter's
+      previous velocity (no information, and self-locking at the +1 clip of (6)); here the net slip velocity is the
+      Gauss-Markov error state of the v_x row, so schemes 1 and 2 fuse the same rows;
+    * the correlated errors of the v_x (13) and v_y (15) rows are first-order Gauss-Markov states instead of white
+      noise (net slip; the S(gamma) error in (15));
+    * ``quantisation_states`` (off by default): the encoder quantisation of (13) as the moving-average error
+      u_k - u_(k-1) it is (count differences), carried by two states, instead of a share of the white R.  Measured on
+      the scored paths it changes nothing (steps in band and position RMS within 1-7 points / 3 %: the velocity error
+      at the 1-10 s scales the filter integrates over is slip, not quantisation), so the smaller filter is the
+      default;
+    * ``roll_model_jacobian`` (schemes 1-2): the v_z row's roll column at the modelled v_By = 0, so that roll does not
+      become spuriously observable through a drifted v_By estimate;
     * the IMU white noise (Q) and the levelled roll/pitch precision (P0) are identified from the rest at
       the start of the calibration runs (:func:`static_imu_noise`; the model's values when no run starts at
       rest); that P0 is used only on runs that start at rest (static levelling, :func:`at_rest_start`), otherwise
@@ -1304,6 +1397,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     gm_y: GaussMarkov | None = None
     refit_s_gamma: bool = True
     unlevelled_p0_rollpitch: float = EkfParams().p0_rollpitch  # [rad] roll/pitch P0 on runs that start moving
+    slip_rows: str = "state"  # run_filter_gm: "state" (slip as the b_x state) or Yi's "feedback"
+    roll_model_jacobian: bool = True  # run_filter_gm (schemes 1-2)
+    quantisation_states: bool = False  # the v_x row's encoder quantisation as states (run_filter_gm enc_quant)
     noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     @property
@@ -1313,6 +1409,11 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     @property
     def calibration_requires(self) -> frozenset[str]:
         return frozenset(REF_CHANNELS)
+
+    def filter_options(self, run: Run) -> dict[str, Any]:
+        """The run_filter_gm options of this configuration for ``run`` (the quantisation std from its encoder spec)."""
+        return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
+                "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0}
 
     def calibrate(self, runs: Sequence[Run]) -> "Yi2009EkfConsistent":
         base = super().calibrate(runs) if self.refit_s_gamma else self
@@ -1330,7 +1431,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
-                                     gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where)
+                                     gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
+                                     **self.filter_options(run))
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:
@@ -1352,7 +1454,8 @@ def ekf_v1_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
 
 
 def ekf_v2_consistent(**kwargs: Any) -> Yi2009EkfConsistent:
-    """Scheme 2 with the Gauss-Markov v_x error state and noise identified on calibration runs (not the paper's)."""
+    """Scheme 2 in the consistent configuration (not the paper's).  With the default ``slip_rows="state"`` it fuses
+    the rows of scheme 1 (the slip is the b_x state, not fed back); ``slip_rows="feedback"`` keeps Yi's (13)-(14)."""
     return Yi2009EkfConsistent(variant=2, **kwargs)
 
 

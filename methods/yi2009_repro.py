@@ -87,7 +87,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.signal import savgol_filter
@@ -775,6 +775,13 @@ def diagnosis(ctx: Any) -> dict[str, float]:
 # ----------------------------------------------------------------------------------- NEES (issue 4)
 NEES_T_MIN = 5.0  # [s] NEES window start (as bench.stress.yi_velocity_nees)
 NEES_CONFIGS = ("paper", "consistent")
+# Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
+# calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
+NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
+    "slip_feedback": ({"slip_rows": "feedback"}, (2, 3)),
+    "quantisation_states": ({"quantisation_states": True}, (1, 2, 3)),
+    "roll_at_estimate": ({"roll_model_jacobian": False}, (1, 2)),
+}
 _NEES_KEY = "_yi2009_nees"
 
 
@@ -852,11 +859,14 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                                     for i, (tr, wl, wr) in cfg.ident(ev.quick)])
     calib_runs = ctx.simulate_many([(load_scenario(sid), seed) for sid, seed in cfg.nees_calibration])
     methods = {}
+    ablations = {} if ev.quick else NEES_ABLATIONS
     for v in VARIANTS:
         methods[("paper", v)] = registry.calibrate(Yi2009Ekf(variant=v, store_covariance=True), ident_runs)
         s_gamma = methods[("paper", 3)].s_gamma if v == 3 else PUBLISHED_S_GAMMA
-        methods[("consistent", v)] = registry.calibrate(
-            Yi2009EkfConsistent(variant=v, s_gamma=s_gamma, refit_s_gamma=False, store_covariance=True), calib_runs)
+        for c, kw in [("consistent", {})] + [(f"ablation_{a}", kw) for a, (kw, vs) in ablations.items() if v in vs]:
+            methods[(c, v)] = registry.calibrate(
+                Yi2009EkfConsistent(variant=v, s_gamma=s_gamma, refit_s_gamma=False, store_covariance=True, **kw),
+                calib_runs)
     scored = {k: load_scenario(n) for k, n in PATHS.items()}
     keys = [(k, s) for k in PATHS for s in ev.seeds]
     runs = dict(zip(keys, ctx.simulate_many([(scored[k], s) for k, s in keys])))
@@ -864,9 +874,11 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     rms: dict[tuple[str, str, int], list[float]] = {}
     axes: dict[tuple[str, str, int], list[np.ndarray]] = {}
     diag: dict[tuple[str, str, int], list[dict[str, float]]] = {}
+    yaw_rate: dict[str, list[float]] = {}
     for k in PATHS:
         for s in ev.seeds:
             run = runs[(k, s)]
+            yaw_rate.setdefault(k, []).append(float(np.mean(np.abs(run["truth_wz"][run.t >= run.t[0] + NEES_T_MIN]))))
             truth = Trajectory.from_run(run, "truth")
             for (cfg_name, v), m in methods.items():
                 est = registry.estimate(m, run)
@@ -874,12 +886,37 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                 rms.setdefault((k, cfg_name, v), []).append(position_rms(truth, Trajectory.from_estimate(est)))
                 axes.setdefault((k, cfg_name, v), []).append(body_velocity_errors(run, est))
                 diag.setdefault((k, cfg_name, v), []).append(slip_lock_and_roll(run, est))
-    out = {"series": {key: np.vstack(v) for key, v in series.items()}, "rms": rms,
-           "axes": {key: np.vstack(v) for key, v in axes.items()}, "diag": diag,
+    # in-sample diagnostic: the consistent filters on their own calibration runs against the testbed truth (a direct
+    # estimate call: registry.estimate refuses a calibration run for scoring, and this is not a score)
+    calib_nees: dict[tuple[str, int], dict[str, float]] = {}
+    for (sid, _), run in zip(cfg.nees_calibration, calib_runs):
+        for v in VARIANTS:
+            est = methods[("consistent", v)].estimate(run)
+            a = body_velocity_errors(run, est)
+            calib_nees[(sid, v)] = {"nees": float(np.mean(velocity_nees_series(run, est))),
+                                    "err_along": float(np.sqrt(np.mean(a[:, 0] ** 2))),
+                                    "sd_along": float(np.sqrt(np.mean(a[:, 2] ** 2))),
+                                    "err_across": float(np.sqrt(np.mean(a[:, 1] ** 2))),
+                                    "sd_across": float(np.sqrt(np.mean(a[:, 3] ** 2)))}
+    out = {"series": {key: np.vstack(v) for key, v in series.items()}, "rms": rms, "calib_nees": calib_nees,
+           "abs_yaw_rate": {k: float(np.mean(v)) for k, v in yaw_rate.items()},
+           "axes": {key: np.vstack(v) for key, v in axes.items()}, "axes_seeds": axes, "diag": diag,
            "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods,
            "calibration": [f"{sid} seed {seed}" for sid, seed in cfg.nees_calibration]}
     ctx.info[_NEES_KEY] = out
     return out
+
+
+def seed_error_correlation(per_seed: Sequence[np.ndarray]) -> float:
+    """Mean over seed pairs of the (uncentred) correlation of their normalised velocity errors, along and across
+    the heading pooled: sum_t z_i z_j / sqrt(sum_t z_i^2 sum_t z_j^2) with z = error / claimed sd, from the (T, 4)
+    arrays of :func:`body_velocity_errors` (one per seed, truncated to the shortest).  1 when the seeds' errors are
+    the same (a common cause: the seeds change only the sensor noise, not the physics), 0 when independent; the
+    seed-averaged NEES then behaves as if from N_eff = N / (1 + (N - 1) rho) independent runs (design effect)."""
+    T = min(a.shape[0] for a in per_seed)
+    z = [np.concatenate((a[:T, 0] / a[:T, 2], a[:T, 1] / a[:T, 3])) for a in per_seed]
+    rho = [float(zi @ zj / math.sqrt((zi @ zi) * (zj @ zj))) for i, zi in enumerate(z) for zj in z[i + 1:]]
+    return float(np.mean(rho)) if rho else math.nan
 
 
 def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int, dof: int = 2,
@@ -900,8 +937,9 @@ def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int
         out[f"{k}.{c}.v{v}.in_band"] = float(np.mean((avg >= lo) & (avg <= hi)))
         out[f"{k}.{c}.v{v}.below"] = float(np.mean(avg < lo))
         out[f"{k}.{c}.v{v}.above"] = float(np.mean(avg > hi))
-        ok[c] = ok[c] and out[f"{k}.{c}.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION
-        ok_mean[c] = ok_mean[c] and lo <= m <= hi
+        if c in ok:  # ablation configurations are reported, not judged
+            ok[c] = ok[c] and out[f"{k}.{c}.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION
+            ok_mean[c] = ok_mean[c] and lo <= m <= hi
     for c in NEES_CONFIGS:
         out[f"{c}_in_band"] = float(ok[c])
         out[f"{c}_mean_in_band"] = float(ok_mean[c])
@@ -919,15 +957,29 @@ def nees(ctx: Any) -> dict[str, float]:
     for (k, c, v), vals in ne["rms"].items():
         out[f"{k}.{c}.v{v}.pos_rms"] = float(np.mean(vals))
     for (k, c, v), a in ne["axes"].items():  # RMS over seeds and steps: error vs claimed sd, along / across heading
+        if c not in NEES_CONFIGS:
+            continue
         for j, key in enumerate(("err_along", "err_across", "sd_along", "sd_across")):
             out[f"{k}.{c}.v{v}.{key}"] = float(np.sqrt(np.mean(a[:, j] ** 2)))
+    for (k, c, v), per_seed in ne["axes_seeds"].items():
+        if c == "consistent":
+            rho = seed_error_correlation(per_seed)
+            out[f"{k}.{c}.v{v}.seed_corr"] = rho
+            out[f"{k}.{c}.v{v}.n_eff"] = n / (1.0 + (n - 1) * max(rho, 0.0))
     for (k, c, v), ds in ne["diag"].items():
+        if c not in NEES_CONFIGS:
+            continue
         out[f"{k}.{c}.v{v}.clip_frac"] = float(np.mean([d["clip_frac"] for d in ds]))
         first = [d["first_clip_s"] for d in ds if math.isfinite(d["first_clip_s"])]
         if first:  # median over the seeds with a clip (no key without one: metrics.json holds no NaN)
             out[f"{k}.{c}.v{v}.first_clip_s"] = float(np.median(first))
         out[f"{k}.{c}.v{v}.roll_err"] = float(np.sqrt(np.mean([d["roll_err"] ** 2 for d in ds])))
         out[f"{k}.{c}.v{v}.roll_sd"] = float(np.sqrt(np.mean([d["roll_sd"] ** 2 for d in ds])))
+    for k, val in ne["abs_yaw_rate"].items():
+        out[f"{k}.abs_yaw_rate"] = val
+    for (sid, v), d in ne["calib_nees"].items():
+        for key, val in d.items():
+            out[f"calib.{sid}.v{v}.{key}"] = val
     for v, info in ne["noise"].items():
         for key in ("accel_noise", "gyro_noise", "p0_rollpitch", "iterations", "last_change", "converged"):
             out[f"noise.v{v}.{key}"] = float(info[key])
@@ -942,16 +994,20 @@ def nees(ctx: Any) -> dict[str, float]:
              f"N = {n} seeds {list(seeds)}; band [{lo:.2f}, {hi:.2f}] = chi2_0.025/0.975(2N)/N (consistent mean 2); "
              f"window t >= {NEES_T_MIN:g} s. in band / below / above: fraction of steps whose seed-averaged NEES is "
              f"inside / below / above the band (pass: >= {NEES_MIN_STEP_FRACTION:.0%} in band). Consistent: "
-             "methods.yi2009.Yi2009EkfConsistent: the v_x (13) and v_y (15) pseudo-measurement errors as first-order "
-             "Gauss-Markov states (run_filter_gm), IMU white noise "
+             "methods.yi2009.Yi2009EkfConsistent (run_filter_gm): slip as the Gauss-Markov error state of the v_x row "
+             "(not fed back; schemes 1 and 2 then fuse the same rows), the v_x (13) and v_y (15) row errors as "
+             "first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
+             "white noise "
              f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
              f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
              "paper's S(gamma) fit. pos RMS: position RMS vs truth [m], mean over seeds. err / sd along, across: RMS "
              "velocity error [m/s] along / across the estimated heading and the RMS standard deviation the filter claims "
-             "there. clip: fraction of steps with a posterior slip at the clip.", "",
+             "there. clip: fraction of steps with a posterior slip at the clip. rho: mean correlation between seeds of "
+             "the normalised velocity errors (seed_error_correlation; the seeds change only the sensor noise), N_eff = "
+             "N / (1 + (N - 1) rho).", "",
              "| path | scheme | paper NEES | in / below / above | clip | pos RMS | consistent NEES | in / below / above | "
-             "clip | pos RMS | err / sd along | err / sd across | roll err / sd [rad] |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "clip | pos RMS | err / sd along | err / sd across | roll err / sd [rad] | rho / N_eff |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def fr(p: str) -> str:
         return f"{out[p + '.in_band']:.2f} / {out[p + '.below']:.2f} / {out[p + '.above']:.2f}"
@@ -963,16 +1019,33 @@ def nees(ctx: Any) -> dict[str, float]:
                          f"{out[p + '.pos_rms']:.3g} | {out[c + '.nees']:.3g} | {fr(c)} | {out[c + '.clip_frac']:.2f} | "
                          f"{out[c + '.pos_rms']:.3g} | {out[c + '.err_along']:.3g} / "
                          f"{out[c + '.sd_along']:.3g} | {out[c + '.err_across']:.3g} / {out[c + '.sd_across']:.3g} | "
-                         f"{out[c + '.roll_err']:.3g} / {out[c + '.roll_sd']:.3g} |")
+                         f"{out[c + '.roll_err']:.3g} / {out[c + '.roll_sd']:.3g} | "
+                         f"{out[c + '.seed_corr']:.2f} / {out[c + '.n_eff']:.2g} |")
     lines += ["", "Identified (consistent configuration): " + ", ".join(f"{key} = {val:.4g}" for key, val in out.items()
                                                                       if key.startswith("noise."))]
+    abl = sorted({c for (_, c, _) in ne["series"] if c.startswith("ablation_")})
+    if abl:
+        lines += ["", "## Ablation: the consistent configuration with one of its choices switched back", "",
+                  "Same calibration runs, identification and scored runs; per cell: steps in band / mean NEES / "
+                  "position RMS [m]. slip_feedback: Yi's fed-back slip (13)-(14) instead of the slip state (schemes "
+                  "2-3); quantisation_states: the encoder quantisation as two states (count difference u_k - u_(k-1)) "
+                  "instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
+                  "v_By (schemes 1-2). Reported, not judged.", "",
+                  "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
+        for c in ["consistent"] + abl:
+            for v in VARIANTS:
+                if (next(iter(PATHS)), c, v) not in ne["series"]:
+                    continue
+                lines.append(f"| {c.removeprefix('ablation_')} | {v} | " + " | ".join(
+                    f"{out[f'{k}.{c}.v{v}.in_band']:.0%} / {out[f'{k}.{c}.v{v}.nees']:.3g} / "
+                    f"{out[f'{k}.{c}.v{v}.pos_rms']:.3g}" for k in PATHS) + " |")
     atomic_write_text(ctx.out_dir / "nees_consistency.md", "\n".join(lines) + "\n")
 
     def fmt(c: str) -> str:
         return "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.{c}.v{v}.nees']:.3g}" for v in VARIANTS) for k in PATHS)
 
     def steps(c: str) -> str:
-        return "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.{c}.v{v}.in_band']:.0%}" for v in VARIANTS) for k in PATHS)
+        return "; ".join(f"{k}: " + "/".join(f"{out[f'{k}.{c}.v{v}.in_band']:.1%}" for v in VARIANTS) for k in PATHS)
 
     def axis_txt(cells: list[tuple[str, int]]) -> str:
         return "; ".join(f"{k} {v}: along {out[f'{k}.consistent.v{v}.err_along']:.3g}/{out[f'{k}.consistent.v{v}.sd_along']:.3g},"
@@ -986,9 +1059,11 @@ def nees(ctx: Any) -> dict[str, float]:
     ctx.note("nees_paper", (
         f"Paper configuration, mean velocity NEES of schemes 1/2/3 ({fmt('paper')}) against [{lo:.2f}, {hi:.2f}]; steps "
         f"in band {steps('paper')}. Causes: the v_x row (13) is fused at 125 Hz as white noise with sigma_1 = r sigma_en "
-        f"(sigma_en = {pp.sigma_enc:g} rad/s), but its error is correlated over seconds (identified on the calibration runs: "
-        f"scheme 2 Gauss-Markov sigma {out['noise.v2.vx.sigma']:.3g} m/s, tau {out['noise.v2.vx.tau']:.3g} s; with slip "
-        "feedback (13) re-measures the filter's own previous velocity); scheme 3's v_y row (15) carries the S(gamma) error "
+        f"(sigma_en = {pp.sigma_enc:g} rad/s), but its error is correlated (identified on the calibration runs for the "
+        f"no-slip row: Gauss-Markov sigma {out['noise.v1.vx.sigma']:.3g} m/s, tau {out['noise.v1.vx.tau']:.3g} s, and the "
+        "encoder quantisation is a count difference, not white), and with slip feedback (schemes 2-3) (13) re-measures "
+        "the filter's own previous velocity (a copy of the prior, counted again at every step); scheme 3's v_y row (15) "
+        "carries the S(gamma) error "
         f"(sigma {out['noise.v3.vy.sigma']:.3g} m/s, tau {out['noise.v3.vy.tau']:.3g} s) fused as white with sigma_2 = "
         f"{pp.sigma_vy:g} m/s. See nees_consistency.md."))
     cells = [(k, v) for k in PATHS for v in VARIANTS]
@@ -997,8 +1072,10 @@ def nees(ctx: Any) -> dict[str, float]:
     # classify failing cells by their per-step fractions (not by the time mean)
     above = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.above"] >= out[f"{k}.consistent.v{v}.below"]]
     below = [(k, v) for k, v in fails if (k, v) not in above]
-    txt = (f"Consistent configuration (Gauss-Markov error states of the v_x/v_y rows, "
-           f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 ({fmt('consistent')}) against "
+    txt = (f"Consistent configuration (slip as the Gauss-Markov error state of the v_x row instead of fed back, so "
+           "schemes 1 and 2 coincide; Gauss-Markov v_y row error; roll Jacobian at the modelled v_By in schemes 1-2; "
+           f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 "
+           f"({fmt('consistent')}) against "
            f"[{lo:.2f}, {hi:.2f}]; steps in band {steps('consistent')} (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "
            f"Identified: IMU noise ({imu_src}) {out['noise.v1.accel_noise']:.3g} m/s^2 / {out['noise.v1.gyro_noise']:.3g} "
            "rad/s per sample; v_x row sigma/tau/white "
@@ -1032,19 +1109,41 @@ def nees(ctx: Any) -> dict[str, float]:
             txt += ("Roll error RMS / claimed sd [rad]: "
                     + ", ".join(f"{k} {v} {out[f'{k}.consistent.v{v}.roll_err']:.3g} / "
                                 f"{out[f'{k}.consistent.v{v}.roll_sd']:.3g}" for k, v in roll)
-                    + ": schemes 1-2 have no lateral row, and roll is observed only through the v_z row (11) linearised "
-                    "at the estimated v_By (spuriously observable), which shrinks the across-track covariance below the "
-                    "actual drift. ")
+                    + ": schemes 1-2 have no lateral row, so the across-track velocity follows the roll error "
+                    "(gravity leakage), which the covariance under-covers. ")
     if below:
         txt += f"Mostly below the band ({name(below)}; {axis_txt(below)}): the claimed sd exceeds the error"
 
         def ratio(k: str, v: int, ax: str) -> float:
             return out[f"{k}.consistent.v{v}.sd_{ax}"] / max(out[f"{k}.consistent.v{v}.err_{ax}"], 1e-12)
 
-        if all(ratio(k, v, "along") > ratio(k, v, "across") for k, v in below):
-            txt += (", most along the heading: the v_x Gauss-Markov sigma identified on the calibration runs "
-                    "over-covers the v_x error here")
-        txt += ". "
+        along = [(k, v) for k, v in below if ratio(k, v, "along") >= ratio(k, v, "across")]
+        across = [(k, v) for k, v in below if (k, v) not in along]
+        if along:
+            txt += (f"; most along the heading in {name(along)}: the v_x Gauss-Markov sigma identified on the "
+                    "calibration runs over-covers the v_x error here")
+        across3 = [(k, v) for k, v in across if v == 3]
+        if across3:
+            txt += (f"; most across the heading in {name(across3)} (mean |yaw rate| "
+                    + ", ".join(f"{out[f'{k}.abs_yaw_rate']:.2g} rad/s ({k})" for k, _ in across3)
+                    + "): the v_y row (15) error is the S(gamma) error times the yaw rate, ~0 where the robot does not "
+                    "turn, but its Gauss-Markov state is stationary and keeps the lateral covariance wide (a state on "
+                    "the S error itself, multiplied by the yaw rate, was tried: it learns S within a run and was "
+                    "overconfident on the calibration runs)")
+        cal = ", ".join(f"{sid} " + "/".join(f"{out[f'calib.{sid}.v{v}.nees']:.2f}" for v in VARIANTS)
+                        for sid, _ in SETTINGS.nees_calibration)
+        txt += (f". On the calibration runs themselves (truth, in-sample diagnostic) the mean NEES of schemes 1/2/3 is "
+                f"{cal} (consistent: 2): one stationary noise model per row is identified over both calibration runs "
+                "(gradual and step commands, several speeds and curvatures), and the slip error of the scored paths' "
+                "steady manoeuvres is smaller than that set's. ")
+    common = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.seed_corr"] >= 0.3]
+    if common:
+        txt += ("The seeds change only the sensor noise, not the physics, so part of the error is common to all seeds: "
+                "correlation of the normalised errors between seeds "
+                + ", ".join(f"{k} {v} {out[f'{k}.consistent.v{v}.seed_corr']:.2f} (N_eff "
+                            f"{out[f'{k}.consistent.v{v}.n_eff']:.2g})" for k, v in common)
+                + f" for N = {n}: there the seed average is closer to one realisation of that error than to an average "
+                  f"of {n} independent runs, which the band assumes. ")
     txt += "Not tuned on the scored runs. See nees_consistency.md."
     ctx.note("nees_consistent", txt)
     return out

@@ -415,8 +415,12 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         gm = dict(sigma=0.05, tau=2.0, white=0.01, white_floored=False)
         noise = {v: dict(accel_noise=0.05, gyro_noise=0.005, p0_rollpitch=1e-3, iterations=3, last_change=0.01,
                          converged=True, imu_noise_source="rest", vx=gm, vy=gm if v == 3 else None) for v in (1, 2, 3)}
+        per_seed = {key: [np.full((T, 4), 0.01), np.full((T, 4), 0.01)] for key in cells}
+        calib_nees = {(sid, v): dict(nees=2.0, err_along=0.01, sd_along=0.01, err_across=0.01, sd_across=0.01)
+                      for sid, _ in Y.SETTINGS.nees_calibration for v in (1, 2, 3)}
         return dict(series=series, rms={key: [0.1, 0.1] for key in cells}, diag=diag, noise=noise,
-                    axes={key: np.full((2 * T, 4), 0.01) for key in cells}, calibration=["cal seed 9"])
+                    axes={key: np.full((2 * T, 4), 0.01) for key in cells}, axes_seeds=per_seed,
+                    calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"])
 
     for clip, expect in ((0.9, True), (0.1, False)):
         notes: dict[str, str] = {}
@@ -428,3 +432,6 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         assert m["circle.consistent.v1.below"] == pytest.approx(0.99) and lo <= m["circle.consistent.v1.nees"] <= hi
         assert "Mostly below the band (circle scheme 1" in txt and "Mostly above the band (straight scheme 2" in txt
         assert "Roll error" not in txt  # roll error = claimed sd everywhere
+        # identical errors in both seeds: correlation 1, N_eff 1, named for the failing cells only
+        assert m["circle.consistent.v1.seed_corr"] == pytest.approx(1.0) and m["circle.consistent.v1.n_eff"] == 1.0
+        assert "circle 1 1.00 (N_eff 1)" in txt and "figure8 1 1.00" not in txt
