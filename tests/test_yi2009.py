@@ -792,47 +792,59 @@ def test_gm_filter_with_a_vanishing_error_state_is_the_paper_filter(variant):
     assert got.n_updates == ref.n_updates
 
 
-def test_gm_filter_covariance_equals_filterpy_on_the_linear_level_rest_case():
-    """Robot level and at rest, IMU reading exactly gravity, encoders reading 0: the EKF state stays 0, so its
-    covariance follows the linear Kalman recursion with F, Q, H, R written out here from the model (strapdown at
-    zero attitude: dV/dtheta = g, dV_y/dphi = -g; b(k) = exp(-dT/tau) b(k-1), Q_b = sigma^2 (1 - a^2); rows
-    v_x = V_x + b (R = white^2) and v_z = V_z (R = sigma_vz^2)), computed by FilterPy's KalmanFilter (Joseph
-    update).  Without encoder rows the error state keeps its stationary variance sigma^2."""
-    from filterpy.kalman import KalmanFilter
-
-    n, dt = 300, 0.008
+def _level_rest(n: int = 300, dt: float = 0.008):
+    """Inputs of the level-rest linear case: IMU reading exactly gravity, encoders reading 0."""
     t = np.arange(n) * dt
     acc = np.tile([0.0, 0.0, G], (n, 1))
-    gyr = np.zeros((n, 3))
-    enc = np.zeros((n, 2))
     p = EkfParams()
-    gm = GaussMarkov(0.03, 0.7, 0.012)
+    enc = np.zeros((n, 2))
     x0, p0 = initial_state(acc, enc, R_WHEEL, p, (0.0, 0.0, 0.0))
-    res, b, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=R_WHEEL, track=TRACK, variant=1, s_gamma=PUBLISHED_S_GAMMA,
-                           params=p, x0=x0, p0=p0, gm_x=gm, store_cov=True)
-    assert np.all(res.state == 0.0) and np.all(b == 0.0)
+    return t, acc, np.zeros((n, 3)), enc, p, x0, p0
+
+
+def _level_rest_kalman(p: EkfParams, p0: np.ndarray, gm: GaussMarkov, dt: float, nq: int = 0):
+    """FilterPy KalmanFilter of the level-rest case written out from the model (strapdown at zero attitude:
+    dV/dtheta = g, dV_y/dphi = -g; b(k) = exp(-dT/tau) b(k-1), Q_b = sigma^2 (1 - a^2); rows v_x = V_x + b
+    (R = white^2) and v_z = V_z (R = sigma_vz^2)); ``nq`` extra states with zero blocks for the caller to fill."""
+    from filterpy.kalman import KalmanFilter
+
+    nx = 10 + nq
     a = math.exp(-dt / gm.tau)
-    kf = KalmanFilter(dim_x=10, dim_z=2)
-    F = np.eye(10)
+    kf = KalmanFilter(dim_x=nx, dim_z=2)
+    F = np.eye(nx)
     F[0, 3] = F[1, 4] = F[2, 5] = dt
     F[3, 7], F[4, 6], F[9, 9] = dt * G, -dt * G, a
     kf.F = F
     kf.Q = np.diag([p.pos_noise**2] * 3 + [(p.accel_noise * dt) ** 2] * 3 + [(p.gyro_noise * dt) ** 2] * 3
-                   + [gm.sigma**2 * (1 - a * a)])
-    kf.H = np.zeros((2, 10))
+                   + [gm.sigma**2 * (1 - a * a)] + [0.0] * nq)
+    kf.H = np.zeros((2, nx))
     kf.H[0, 3] = kf.H[0, 9] = 1.0
     kf.H[1, 5] = 1.0
     kf.R = np.diag([gm.white**2, p.sigma_vz**2])
-    kf.P = np.diag(list(np.diag(p0)) + [gm.sigma**2])
-    kf.x = np.zeros(10)
+    kf.P = np.diag(list(np.diag(p0)) + [gm.sigma**2] + [0.0] * nq)
+    kf.x = np.zeros(nx)
+    return kf
+
+
+def test_gm_filter_covariance_equals_filterpy_on_the_linear_level_rest_case():
+    """Robot level and at rest, IMU reading exactly gravity, encoders reading 0: the EKF state stays 0, so its
+    covariance follows the linear Kalman recursion with F, Q, H, R written out from the model
+    (:func:`_level_rest_kalman`), computed by FilterPy's KalmanFilter (Joseph update).  Without encoder rows the
+    error state keeps its stationary variance sigma^2."""
+    t, acc, gyr, enc, p, x0, p0 = _level_rest()
+    n, dt = t.size, float(t[1] - t[0])
+    gm = GaussMarkov(0.03, 0.7, 0.012)
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, variant=1, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=gm, store_cov=True)
+    res, b, _ = run_filter_gm(t, acc, gyr, enc, **kw)
+    assert np.all(res.state == 0.0) and np.all(b == 0.0)
+    kf = _level_rest_kalman(p, p0, gm, dt)
     assert np.allclose(res.cov[0], kf.P, rtol=0, atol=1e-15)
     for k in range(1, n):
         kf.predict()
         kf.update(np.zeros(2))
         assert np.allclose(res.cov[k], kf.P, rtol=1e-8, atol=1e-14), k
-    enc_nan = np.full((n, 2), np.nan)
-    res2, _, _ = run_filter_gm(t, acc, gyr, enc_nan, wheel_radius=R_WHEEL, track=TRACK, variant=1,
-                            s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0, gm_x=gm, store_cov=True)
+    res2, _, _ = run_filter_gm(t, acc, gyr, np.full((n, 2), np.nan), **kw)
     assert np.allclose(res2.cov[:, 9, 9], gm.sigma**2, rtol=1e-12, atol=0)
 
 
@@ -842,35 +854,17 @@ def test_gm_filter_quantisation_states_equal_filterpy_with_the_shift_as_predicti
     as its prediction (F block [[0, 1], [0, 0]], Q diag(0, enc_quant^2)) and the row v_x = V_x + b + u - u_prev
     (second implementation: run_filter_gm resets u before and shifts it after each fused row).  The 10 states
     other than the residuals agree at every step; run_filter_gm's u_prev after the shift is FilterPy's u."""
-    from filterpy.kalman import KalmanFilter
-
-    n, dt, sq = 300, 0.008, 0.007
-    t = np.arange(n) * dt
-    acc = np.tile([0.0, 0.0, G], (n, 1))
-    gyr = np.zeros((n, 3))
-    enc = np.zeros((n, 2))
-    p = EkfParams()
+    t, acc, gyr, enc, p, x0, p0 = _level_rest()
+    n, sq = t.size, 0.007
     gm = GaussMarkov(0.03, 0.7, 0.004)
-    x0, p0 = initial_state(acc, enc, R_WHEEL, p, (0.0, 0.0, 0.0))
     res, _, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=R_WHEEL, track=TRACK, variant=1,
                               s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0, gm_x=gm, store_cov=True, enc_quant=sq)
     assert res.cov.shape == (n, 12, 12) and np.all(res.state == 0.0)
-    a = math.exp(-dt / gm.tau)
-    kf = KalmanFilter(dim_x=12, dim_z=2)
-    F = np.eye(12)
-    F[0, 3] = F[1, 4] = F[2, 5] = dt
-    F[3, 7], F[4, 6], F[9, 9] = dt * G, -dt * G, a
-    F[10, 10], F[10, 11], F[11, 11] = 0.0, 1.0, 0.0
-    kf.F = F
-    kf.Q = np.diag([p.pos_noise**2] * 3 + [(p.accel_noise * dt) ** 2] * 3 + [(p.gyro_noise * dt) ** 2] * 3
-                   + [gm.sigma**2 * (1 - a * a), 0.0, sq * sq])
-    kf.H = np.zeros((2, 12))
-    kf.H[0, 3] = kf.H[0, 9] = kf.H[0, 11] = 1.0
-    kf.H[0, 10] = -1.0
-    kf.H[1, 5] = 1.0
-    kf.R = np.diag([gm.white**2, p.sigma_vz**2])
-    kf.P = np.diag(list(np.diag(p0)) + [gm.sigma**2, sq * sq, sq * sq])
-    kf.x = np.zeros(12)
+    kf = _level_rest_kalman(p, p0, gm, float(t[1] - t[0]), nq=2)
+    kf.F[10, 10], kf.F[10, 11], kf.F[11, 11] = 0.0, 1.0, 0.0
+    kf.Q[11, 11] = sq * sq
+    kf.H[0, 11], kf.H[0, 10] = 1.0, -1.0
+    kf.P[10, 10] = kf.P[11, 11] = sq * sq
     for k in range(1, n):
         kf.predict()
         kf.update(np.zeros(2))
