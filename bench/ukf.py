@@ -374,12 +374,12 @@ class Ukf:
             A = self._eye - K @ H
             KRKt = K @ R @ KT
             if self.mi_covariance:  # see the class docstring (mi_covariance)
-                lam2 = self.mi_weights[1]
-                C = self._mi_C if had_past else np.zeros_like(P)
-                AC = A @ C
-                P_new = A @ P @ A.T + KRKt
-                C_new = A @ P @ H.T @ KT - KRKt
+                AP = A @ P
+                P_new = AP @ A.T + KRKt
+                C_new = AP @ H.T @ KT - KRKt
                 if had_past:
+                    lam2, C = self.mi_weights[1], self._mi_C
+                    AC = A @ C
                     P_new += lam2 * lam2 * self._mi_D - lam2 * (AC + AC.T)
                     C_new -= lam2 * (C.T @ H.T @ KT)
                 self._mi_C, self._mi_D = C_new, K @ S @ KT

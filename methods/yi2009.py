@@ -383,182 +383,18 @@ class FilterResult:
 def run_filter(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
                track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray,
                p0: np.ndarray, store_cov: bool = False, where: str = "run") -> FilterResult:
-    """Run the EKF (26a)-(26f) over IMU steps.
+    """Run the EKF (26a)-(26f) over IMU steps, as the paper defines it (the 9 states, white R).
 
     ``t`` (n,), ``acc`` (n, 3) specific force [m/s^2], ``gyr`` (n, 3) [rad/s] in B; ``enc`` (n, 2)
     wheel speeds [rad/s] of a fresh encoder pair at each step or NaN (dropped).  ``x0`` (9,),
     ``p0`` (9, 9).  Step k predicts with u(k-1) over t[k] - t[k-1] (eq. (18)) and then fuses the
     measurement rows available at k (R is diagonal, so dropping a row drops that element only).
     Raises :class:`FilterDivergence` with the step index when the innovation covariance is not
-    positive definite (Cholesky, LAPACK dpotrf) or the state becomes non-finite."""
-    if variant not in (1, 2, 3):
-        raise ValueError(f"variant = {variant!r}: must be 1, 2 or 3 (Fig. 5)")
-    n = int(t.size)
-    r, hw = float(wheel_radius), 0.5 * float(track)
-    use_slip, use_vy = variant >= 2, variant == 3
-    a1, a2, a3 = s_gamma.a1, s_gamma.a2, s_gamma.a3
-    g = params.gravity
-    vmin = params.min_wheel_speed
-    q_const = np.array([params.pos_noise**2] * 3 + [0.0] * 6)  # per step
-    q_dt2 = np.array([0.0] * 3 + [params.accel_noise**2] * 3 + [params.gyro_noise**2] * 3)  # times dT^2
-    r_all = ((r * params.sigma_enc) ** 2, params.sigma_vy**2, params.sigma_vz**2)
-    # measurement rows fused when an encoder pair is fresh / not (v_z (11) is always available)
-    rows_enc = (0, 1, 2) if use_vy else (0, 2)
-    r_mat = {rows: np.diag([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
-    r_vec = {rows: np.array([r_all[i] for i in rows]) for rows in (rows_enc, (2,))}
-
-    t_l = t.tolist()
-    acc_l = acc.tolist()
-    gyr_l = gyr.tolist()
-    enc_l = enc.tolist()
-    enc_ok = np.isfinite(enc).all(axis=1).tolist()
-
-    out: list[tuple[float, ...]] = []
-    covs: list[np.ndarray] = []
-    I9 = np.eye(9)
-    f_tmpl = np.eye(9).ravel().tolist()
-    P = np.array(p0, dtype=float, copy=True)
-    px, py, pz, vx, vy, vz, phi, th, psi = (float(v) for v in x0)
-    lam_l = lam_r = 0.0
-    w_l = w_r = math.nan  # latest encoder pair (held for the slip output)
-    s_cur = math.nan  # S(gamma) of the latest v_y row (variant 3)
-    if enc_ok[0]:
-        w_l, w_r = enc_l[0]
-        den = r * (w_l + w_r)
-        s_cur = a1 / (a2 * abs(r * (w_l - w_r) / den) + a3) if abs(den) > 1e-9 else 0.0  # (40)-(41), lambda = 0
-    nx = ny = nz = 0
-    two_pi = 2.0 * math.pi
-    dt_last, Qk = -1.0, np.zeros((9, 9))
-    potrf, potrs = lapack.dpotrf, lapack.dpotrs
-
-    for k in range(n):
-        gx, gy, gz = gyr_l[k]
-        if k > 0:
-            # ---------------- prediction (26a)-(26b) with u(k-1), from X(k-1|k-1) -------
-            # (sf..cp, c11..c33 hold the trigonometry/DCM (2) of the posterior of step k-1)
-            dt = t_l[k] - t_l[k - 1]
-            ax, ay, az = acc_l[k - 1]
-            ux, uy, uz = gyr_l[k - 1]
-            vdx = c11 * ax + c12 * ay + c13 * az  # eq. (10b): C A_B + G
-            vdy = c21 * ax + c22 * ay + c23 * az
-            c3a = c31 * ax + c32 * ay + c33 * az
-            tt = st / ct
-            qy = sf * uy + cf * uz
-            phid = ux + tt * qy  # eq. (10c)
-            thd = cf * uy - sf * uz  # eq. (10d)
-            psid = qy / ct  # eq. (10e)
-            # F (20) with F_V (22) in rows 3-5 / cols 6-8 and I + dT F_Theta in rows/cols 6-8
-            fl = f_tmpl.copy()
-            fl[3] = fl[13] = fl[23] = dt
-            fl[33], fl[34], fl[35] = dt * (c13 * ay - c12 * az), dt * cp * c3a, -dt * vdy
-            fl[42], fl[43], fl[44] = dt * (c23 * ay - c22 * az), dt * sp * c3a, dt * vdx
-            fl[51], fl[52] = dt * (c33 * ay - c32 * az), dt * (-ct * ax - st * sf * ay - st * cf * az)
-            fl[60], fl[61] = 1.0 + dt * thd * tt, dt * psid / ct
-            fl[69] = -dt * psid * ct
-            fl[78], fl[79] = dt * thd / ct, dt * psid * tt
-            F = np.array(fl).reshape(9, 9)
-            px += dt * vx
-            py += dt * vy
-            pz += dt * vz
-            vx += dt * vdx
-            vy += dt * vdy
-            vz += dt * (c3a - g)
-            phi += dt * phid
-            th += dt * thd
-            psi += dt * psid
-            if abs(dt - dt_last) > 1e-9 * dt:  # Q(k) for this dT (recomputed when dT changes)
-                Qk, dt_last = np.diag(q_const + q_dt2 * (dt * dt)), dt
-            P = F @ P @ F.T + Qk
-
-            # ---------------- measurement (11)-(16) at the prior --------------------------
-            sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
-            sp, cp = math.sin(psi), math.cos(psi)
-            c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
-            c21, c22, c23 = ct * sp, cf * cp + st * sf * sp, -sf * cp + st * cf * sp
-            c31, c32, c33 = -st, ct * sf, cf * ct
-            vbx = c11 * vx + c21 * vy + c31 * vz  # h = C^T V_I (16)
-            vby = c12 * vx + c22 * vy + c32 * vz
-            vbz = c13 * vx + c23 * vy + c33 * vz
-            # H = [0, C^T, H_Theta] (23)-(25), one row per element
-            h_x = (0.0, 0.0, 0.0, c11, c21, c31, 0.0, -st * cp * vx - st * sp * vy - ct * vz, c11 * vy - c21 * vx)
-            h_z = (0.0, 0.0, 0.0, c13, c23, c33, -vby, cf * vbx, c13 * vy - c23 * vx)
-            if enc_ok[k]:
-                w_l, w_r = enc_l[k]
-                if use_slip:  # eq. (14) on the slips of step k-1, signs from the current wheel speeds
-                    pl = (lam_l if lam_l > 0.0 else 0.0) if w_l >= w_r else (lam_l if lam_l < 0.0 else 0.0)
-                    pr = (lam_r if lam_r > 0.0 else 0.0) if w_l <= w_r else (lam_r if lam_r < 0.0 else 0.0)
-                else:
-                    pl = pr = 0.0
-                y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))  # eq. (13), y_M = 0
-                if use_vy:
-                    v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
-                    den = v_lx + v_rx
-                    s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0  # (40), (41)
-                    y_y = -s_cur * (sf * gy + cf * gz) / ct  # eq. (15), x_M = 0, yaw rate (10e)
-                    h_y = (0.0, 0.0, 0.0, c12, c22, c32, vbz, sf * vbx, c12 * vy - c22 * vx)
-                    H = np.array((h_x, h_y, h_z))
-                    innov = np.array((y_x - vbx, y_y - vby, -vbz))  # v_Bz = 0 (11)
-                else:
-                    H = np.array((h_x, h_z))
-                    innov = np.array((y_x - vbx, -vbz))
-                rows = rows_enc
-                nx += 1
-                ny += use_vy
-            else:
-                H = np.array((h_z,))
-                innov = np.array((-vbz,))
-                rows = (2,)
-            nz += 1
-            # ---------------- correction (26c)-(26f) ------------------------------------
-            PHt = P @ H.T
-            S = H @ PHt + r_mat[rows]  # (26e)
-            L, info = potrf(S, lower=1)
-            d = L.diagonal().tolist()
-            if info != 0 or not (all(v > 0.0 for v in d) and math.isfinite(sum(d))):
-                raise FilterDivergence(where, k, t_l[k], f"innovation covariance S (26e) not positive definite: {S.tolist()}")
-            K = potrs(L, PHt.T, lower=1)[0].T  # (26d): W = P H^T S^-1
-            IKH = I9 - K @ H
-            P = IKH @ P @ IKH.T + (K * r_vec[rows]) @ K.T  # Joseph form (26f)
-            P = 0.5 * (P + P.T)
-            dx = (K @ innov).tolist()  # (26c)
-            px += dx[0]
-            py += dx[1]
-            pz += dx[2]
-            vx += dx[3]
-            vy += dx[4]
-            vz += dx[5]
-            phi += dx[6]
-            th += dx[7]
-            psi += dx[8]
-            if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi):
-                raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
-            psi = (psi + math.pi) % two_pi - math.pi  # wrap the yaw state
-
-        # ---------------- posterior DCM (2); slip from the posterior velocity, (3)-(6) ------
-        sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
-        sp, cp = math.sin(psi), math.cos(psi)
-        c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
-        c21, c22, c23 = ct * sp, cf * cp + st * sf * sp, -sf * cp + st * cf * sp
-        c31, c32, c33 = -st, ct * sf, cf * ct
-        vbx = c11 * vx + c21 * vy + c31 * vz
-        vby = c12 * vx + c22 * vy + c32 * vz
-        vbz = c13 * vx + c23 * vy + c33 * vz
-        psid = (sf * gy + cf * gz) / ct  # eq. (10e)
-        if w_l == w_l:  # an encoder pair has been seen
-            rwl, rwr = r * w_l, r * w_r
-            lam_l = min(1.0, max(-1.0, (rwl - (vbx - hw * psid)) / rwl)) if abs(rwl) >= vmin else 0.0
-            lam_r = min(1.0, max(-1.0, (rwr - (vbx + hw * psid)) / rwr)) if abs(rwr) >= vmin else 0.0
-            sl_l, sl_r = lam_l, lam_r
-        else:
-            sl_l = sl_r = math.nan
-        out.append((px, py, pz, vx, vy, vz, phi, th, psi, vbx, vby, vbz, psid, sl_l, sl_r, s_cur))
-        if store_cov:
-            covs.append(P)
-
-    o = np.array(out, dtype=float).reshape(n, 16)
-    s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
-    return FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nx, ny, nz),
-                        np.array(covs) if store_cov else None)
+    positive definite (Cholesky, LAPACK dpotrf) or the state becomes non-finite.
+    The loop is :func:`run_filter_gm`'s without error states (``gm_x=None``) and with its default options (Yi's
+    rows): one implementation serves the paper and the consistent configuration."""
+    return run_filter_gm(t, acc, gyr, enc, wheel_radius=wheel_radius, track=track, variant=variant, s_gamma=s_gamma,
+                         params=params, x0=x0, p0=p0, gm_x=None, store_cov=store_cov, where=where)[0]
 
 
 # ------------------------------------------------------------------------------------------
@@ -736,14 +572,9 @@ def ekf_v3(**kwargs: Any) -> Yi2009Ekf:
 # ------------------------------------------------------------------------------------------
 # Consistent configuration (not in the paper): measurement noise identified on calibration runs
 # ------------------------------------------------------------------------------------------
-def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyorder: int = 2
-                            ) -> tuple[np.ndarray, np.ndarray, float]:
-    """Body velocity (v_x, v_y) [m/s] at times ``t`` from the reference pose (ref_x, ref_y, ref_yaw),
-    by Savitzky-Golay differentiation over ``window`` s (local polynomial of ``polyorder``) on the
-    reference's own uniform grid, divided by the filter's gain on a turn at the smoothed yaw rate (exact
-    for a steady turn), rotated by the smoothed reference yaw; NaN outside the reference span.
-    Also returns the variance of the derivative's noise per axis, pos_noise^2 sum(c_k^2) with the
-    filter's derivative coefficients c_k and ``meta.platform.sensors.reference.pos_noise`` (0 if absent)."""
+def _reference_derivative(run: Run, window: float, polyorder: int) -> tuple[np.ndarray, float, int, np.ndarray]:
+    """(rows with a full reference pose, reference sample period h [s], Savitzky-Golay window [samples, odd] for
+    ``window`` s, its first-derivative coefficients c_k) of :func:`reference_body_velocity`."""
     from scipy.signal import savgol_coeffs
 
     d = run.data
@@ -756,6 +587,20 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     win = max(polyorder + 2, int(round(window / h)) | 1) if math.isfinite(h) else 0
     if tr.size < max(win, 8):
         raise RunError(run.where, "ref_x", f"{tr.size} samples", f"too few reference samples for a {window} s derivative")
+    return ok, h, win, savgol_coeffs(win, polyorder, deriv=1, delta=h, use="dot")
+
+
+def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyorder: int = 2
+                            ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Body velocity (v_x, v_y) [m/s] at times ``t`` from the reference pose (ref_x, ref_y, ref_yaw),
+    by Savitzky-Golay differentiation over ``window`` s (local polynomial of ``polyorder``) on the
+    reference's own uniform grid, divided by the filter's gain on a turn at the smoothed yaw rate (exact
+    for a steady turn), rotated by the smoothed reference yaw; NaN outside the reference span.
+    Also returns the variance of the derivative's noise per axis, pos_noise^2 sum(c_k^2) with the
+    filter's derivative coefficients c_k and ``meta.platform.sensors.reference.pos_noise`` (0 if absent)."""
+    d = run.data
+    ok, h, win, coef = _reference_derivative(run, window, polyorder)
+    tr = run.t[ok]
     tg = np.arange(tr[0], tr[-1] + 0.5 * h, h)
     xs, ys, yaws = (np.interp(tg, tr, v) for v in (d["ref_x"].to_numpy()[ok], d["ref_y"].to_numpy()[ok],
                                                   np.unwrap(d["ref_yaw"].to_numpy()[ok])))
@@ -765,7 +610,6 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     psid = savgol_filter(yaws, deriv=1, **kw)
     # On a turn at yaw rate w the derivative filter returns gain(w) = sum_k c_k sin(w t_k) / w of the
     # true velocity (antisymmetric c_k: no phase shift; ~2.5 % low at 1 rad/s over 1 s): divide it out.
-    coef = savgol_coeffs(win, polyorder, deriv=1, delta=h, use="dot")
     tk = (np.arange(win) - win // 2) * h
     w = np.where(np.abs(psid) > 1e-6, psid, 1e-6)
     gain = (np.sin(np.outer(w, tk)) @ coef) / w
@@ -782,13 +626,7 @@ def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, 
     the Savitzky-Golay derivative of white position noise (``reference_position_noise``) has the autocovariance
     pos_noise^2 sum_k c_k c_(k+m) at m reference samples (zero beyond the window), interpolated to the filter's
     lags; returns W -> (1/W^2) sum_i sum_j acov(|i - j| dt)."""
-    from scipy.signal import savgol_coeffs
-
-    d = run.data
-    ok = np.isfinite(d["ref_x"].to_numpy())
-    h = float(np.median(np.diff(run.t[ok])))
-    win = max(polyorder + 2, int(round(window / h)) | 1)
-    coef = savgol_coeffs(win, polyorder, deriv=1, delta=h, use="dot")
+    _, h, win, coef = _reference_derivative(run, window, polyorder)
     ac_ref = np.array([float(coef[:win - m] @ coef[m:]) for m in range(win)] + [0.0])
     s2 = reference_position_noise(run) ** 2
 
@@ -916,7 +754,7 @@ SLIP_ROWS = ("feedback", "state")  # v_x row of run_filter_gm: Yi's (13) with fe
 
 def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
                   track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
-                  gm_x: GaussMarkov, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
+                  gm_x: GaussMarkov | None, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
                   slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0
                   ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
@@ -952,11 +790,13 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     fused v_x row a fresh u_k ~ N(0, enc_quant^2) enters the state (row +1 on u, -1 on u_prev), and after the
     update it becomes u_prev of the next row (augmentation for moving-average measurement noise: Bar-Shalom, Li,
     Kirubarajan 2001 Sec. 8.4).
+    ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
+    ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
     rows (n, 2): the v_x and v_y rows fused at each step, NaN where not fused)."""
     if variant not in (1, 2, 3):
         raise ValueError(f"variant = {variant!r}: must be 1, 2 or 3 (Fig. 5)")
-    if variant == 3 and gm_y is None:
+    if variant == 3 and gm_x is not None and gm_y is None:
         raise ValueError("run_filter_gm: scheme 3 needs gm_y (the v_y row's Gauss-Markov error)")
     if slip_rows not in SLIP_ROWS:
         raise ValueError(f"run_filter_gm: slip_rows = {slip_rows!r}: must be one of {SLIP_ROWS}")
@@ -965,17 +805,24 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     n = int(t.size)
     r, hw = float(wheel_radius), 0.5 * float(track)
     use_slip, use_vy = variant >= 2, variant == 3
-    nb = 2 if use_vy else 1
+    gms = () if gm_x is None else (gm_x, gm_y) if use_vy else (gm_x,)
+    nb = len(gms)
     nq = 2 if enc_quant > 0 else 0  # quantisation residuals (previous, current) of the v_x row
     nx = 9 + nb + nq
     iqc, iqu = 9 + nb, 10 + nb
     a1, a2, a3 = s_gamma.a1, s_gamma.a2, s_gamma.a3
     g = params.gravity
     vmin = params.min_wheel_speed
-    gms = (gm_x, gm_y) if use_vy else (gm_x,)
     q_const = np.array([params.pos_noise**2] * 3 + [0.0] * (6 + nb + nq))
     q_dt2 = np.array([0.0] * 3 + [params.accel_noise**2] * 3 + [params.gyro_noise**2] * 3 + [0.0] * (nb + nq))
-    r_all = (gm_x.white**2, gm_y.white**2 if use_vy else 0.0, params.sigma_vz**2)
+    if gm_x is None:  # R = diag(r^2 sigma_en^2, sigma_2^2, sigma_3^2) (Sec. IV-A)
+        r_all = ((r * params.sigma_enc) ** 2, params.sigma_vy**2, params.sigma_vz**2)
+    else:
+        r_all = (gm_x.white**2, gm_y.white**2 if use_vy else 0.0, params.sigma_vz**2)
+
+    # R (diagonal) and its diagonal for each set of fused rows (0: v_x, 1: v_y, 2: v_z)
+    r_sets = {rows: (np.diag([r_all[i] for i in rows]), np.array([r_all[i] for i in rows]))
+              for rows in ((0, 1, 2), (0, 2), (1, 2), (2,))}
 
     t_l, acc_l, gyr_l, enc_l = t.tolist(), acc.tolist(), gyr.tolist(), enc.tolist()
     enc_ok = np.isfinite(enc).all(axis=1).tolist()
@@ -993,7 +840,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     ib = [ix(9 + j, 9 + j) for j in range(nb)]
     zb = (0.0,) * nb
     ex = (1.0, 0.0)[:nb] + ((-1.0, 1.0) if nq else ())
-    ey = (0.0, 1.0)
+    ey = (0.0, 1.0)[:nb]
     zq = (0.0,) * nq
     shift_q = np.eye(nx)
     if nq:
@@ -1001,7 +848,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         var_q = enc_quant**2
     P = np.zeros((nx, nx))
     P[:9, :9] = p0
-    for j, gmj in enumerate(gms):
+    for j, gmj in enumerate(gms):  # the error states start at their stationary variance
         P[9 + j, 9 + j] = gmj.sigma**2
     px, py, pz, vx, vy, vz, phi, th, psi = (float(v) for v in x0)
     b = [0.0] * nb
@@ -1026,21 +873,24 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         row_k = (math.nan, math.nan)
         x_fused = False
         if k > 0:
+            # ---------------- prediction (26a)-(26b) with u(k-1), from X(k-1|k-1) -------
+            # (sf..cp, c11..c33 hold the trigonometry/DCM (2) of the posterior of step k-1)
             dt = t_l[k] - t_l[k - 1]
             ax, ay, az = acc_l[k - 1]
             ux, uy, uz = gyr_l[k - 1]
-            vdx = c11 * ax + c12 * ay + c13 * az
+            vdx = c11 * ax + c12 * ay + c13 * az  # eq. (10b): C A_B + G
             vdy = c21 * ax + c22 * ay + c23 * az
             c3a = c31 * ax + c32 * ay + c33 * az
             tt = st / ct
             qy = sf * uy + cf * uz
-            phid = ux + tt * qy
-            thd = cf * uy - sf * uz
-            psid = qy / ct
-            if abs(dt - dt_last) > 1e-9 * dt:
+            phid = ux + tt * qy  # eq. (10c)
+            thd = cf * uy - sf * uz  # eq. (10d)
+            psid = qy / ct  # eq. (10e)
+            if abs(dt - dt_last) > 1e-9 * dt:  # Q(k) for this dT (recomputed when dT changes)
                 ab = [math.exp(-dt / gmj.tau) for gmj in gms]
                 qb = [gmj.sigma**2 * (1.0 - aj * aj) for gmj, aj in zip(gms, ab)]
                 Qk, dt_last = np.diag(q_const + q_dt2 * (dt * dt) + np.array([0.0] * 9 + qb + [0.0] * nq)), dt
+            # F (20) with F_V (22) in rows 3-5 / cols 6-8 and I + dT F_Theta in rows/cols 6-8; a on b's diagonal
             fl = f_tmpl.copy()
             fl[i03] = fl[i14] = fl[i25] = dt
             fl[i36], fl[i37], fl[i38] = dt * (c13 * ay - c12 * az), dt * cp * c3a, -dt * vdy
@@ -1064,32 +914,34 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             psi += dt * psid
             P = F @ P @ F.T + Qk
 
+            # ---------------- measurement (11)-(16) at the prior --------------------------
             sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
             sp, cp = math.sin(psi), math.cos(psi)
             c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
             c21, c22, c23 = ct * sp, cf * cp + st * sf * sp, -sf * cp + st * cf * sp
             c31, c32, c33 = -st, ct * sf, cf * ct
-            vbx = c11 * vx + c21 * vy + c31 * vz
+            vbx = c11 * vx + c21 * vy + c31 * vz  # h = C^T V_I (16)
             vby = c12 * vx + c22 * vy + c32 * vz
             vbz = c13 * vx + c23 * vy + c33 * vz
+            # H = [0, C^T, H_Theta] (23)-(25), one row per element, then the error-state columns
             h_x = (0.0, 0.0, 0.0, c11, c21, c31, 0.0, -st * cp * vx - st * sp * vy - ct * vz, c11 * vy - c21 * vx) + ex
             h_z = (0.0, 0.0, 0.0, c13, c23, c33, 0.0 if roll_model_jacobian and not use_vy else -vby, cf * vbx,
                    c13 * vy - c23 * vx) + zb + zq
             if enc_ok[k]:
                 w_l, w_r = enc_l[k]
-                if use_slip and not slip_state:
+                if use_slip and not slip_state:  # eq. (14) on the slips of step k-1, signs from the current speeds
                     pl = (lam_l if lam_l > 0.0 else 0.0) if w_l >= w_r else (lam_l if lam_l < 0.0 else 0.0)
                     pr = (lam_r if lam_r > 0.0 else 0.0) if w_l <= w_r else (lam_r if lam_r < 0.0 else 0.0)
                 else:
                     pl = pr = 0.0
-                y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))
+                y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))  # eq. (13), y_M = 0
                 if use_vy:
                     v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
                     den = v_lx + v_rx
-                    s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0
-                    y_y = -s_cur * (sf * gy + cf * gz) / ct
+                    s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0  # (40), (41)
+                    y_y = -s_cur * (sf * gy + cf * gz) / ct  # eq. (15), x_M = 0, yaw rate (10e)
                     h_y = (0.0, 0.0, 0.0, c12, c22, c32, vbz, sf * vbx, c12 * vy - c22 * vx) + ey + zq
-                hs, inn, rv = [], [], []
+                hs, inn, rows = [], [], []
                 if y_x == y_x:
                     x_fused = True
                     if nq:  # a fresh quantisation residual u_k (prior N(0, enc_quant^2)); row adds u_k - u_(k-1)
@@ -1098,37 +950,38 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                         P[iqu, iqu] = var_q
                         qu = 0.0
                     hs.append(h_x)
-                    inn.append(y_x - vbx - b[0] - (qu - qc if nq else 0.0))
-                    rv.append(r_all[0])
+                    inn.append(y_x - vbx - (b[0] if nb else 0.0) - (qu - qc if nq else 0.0))
+                    rows.append(0)
                     nxu += 1
                 if use_vy:
                     hs.append(h_y)
-                    inn.append(y_y - vby - b[1])
-                    rv.append(r_all[1])
+                    inn.append(y_y - vby - (b[1] if nb else 0.0))
+                    rows.append(1)
                     nyu += 1
                 row_k = (y_x, y_y if use_vy else math.nan)
                 hs.append(h_z)
-                inn.append(-vbz)
-                rv.append(r_all[2])
+                inn.append(-vbz)  # v_Bz = 0 (11)
+                rows.append(2)
                 H = np.array(hs)
                 innov = np.array(inn)
-                r_k = np.array(rv)
+                r_mat, r_k = r_sets[tuple(rows)]
             else:
                 H = np.array((h_z,))
                 innov = np.array((-vbz,))
-                r_k = np.array((r_all[2],))
+                r_mat, r_k = r_sets[(2,)]
             nzu += 1
+            # ---------------- correction (26c)-(26f) ------------------------------------
             PHt = P @ H.T
-            S = H @ PHt + np.diag(r_k)
+            S = H @ PHt + r_mat  # (26e)
             L, info = potrf(S, lower=1)
             d = L.diagonal().tolist()
             if info != 0 or not (all(v > 0.0 for v in d) and math.isfinite(sum(d))):
-                raise FilterDivergence(where, k, t_l[k], f"innovation covariance S not positive definite: {S.tolist()}")
-            K = potrs(L, PHt.T, lower=1)[0].T
+                raise FilterDivergence(where, k, t_l[k], f"innovation covariance S (26e) not positive definite: {S.tolist()}")
+            K = potrs(L, PHt.T, lower=1)[0].T  # (26d): W = P H^T S^-1
             IKH = Ix - K @ H
-            P = IKH @ P @ IKH.T + (K * r_k) @ K.T
+            P = IKH @ P @ IKH.T + (K * r_k) @ K.T  # Joseph form (26f)
             P = 0.5 * (P + P.T)
-            dx = (K @ innov).tolist()
+            dx = (K @ innov).tolist()  # (26c)
             px += dx[0]
             py += dx[1]
             pz += dx[2]
@@ -1146,8 +999,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 P[iqu, iqu] = var_q
             if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi + sum(b)):
                 raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
-            psi = (psi + math.pi) % two_pi - math.pi
+            psi = (psi + math.pi) % two_pi - math.pi  # wrap the yaw state
 
+        # ---------------- posterior DCM (2); slip from the posterior velocity, (3)-(6) ------
         sf, cf, st, ct = math.sin(phi), math.cos(phi), math.sin(th), math.cos(th)
         sp, cp = math.sin(psi), math.cos(psi)
         c11, c12, c13 = ct * cp, -sp * cf + cp * sf * st, sf * sp + cp * st * cf
@@ -1156,8 +1010,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         vbx = c11 * vx + c21 * vy + c31 * vz
         vby = c12 * vx + c22 * vy + c32 * vz
         vbz = c13 * vx + c23 * vy + c33 * vz
-        psid = (sf * gy + cf * gz) / ct
-        if w_l == w_l:
+        psid = (sf * gy + cf * gz) / ct  # eq. (10e)
+        if w_l == w_l:  # an encoder pair has been seen
             rwl, rwr = r * w_l, r * w_r
             lam_l = min(1.0, max(-1.0, (rwl - (vbx - hw * psid)) / rwl)) if abs(rwl) >= vmin else 0.0
             lam_r = min(1.0, max(-1.0, (rwr - (vbx + hw * psid)) / rwr)) if abs(rwr) >= vmin else 0.0
@@ -1214,21 +1068,28 @@ def static_imu_noise(runs: Sequence[Run], min_samples: int = 50, guard: float = 
     return float(np.sqrt(np.mean(va / dof))), float(np.sqrt(np.mean(vg / dof))), n
 
 
+def _encoder_speed_quantum(run: Run) -> float | None:
+    """r q rate_hz [m/s] with q = 2 pi / counts_per_rev (``meta.platform.sensors.encoder``): one count per
+    sample as a tread speed; None when the spec lacks either value."""
+    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
+    spec = spec if isinstance(spec, Mapping) else {}
+    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
+        return None
+    return _geometry(run)[0] * 2.0 * math.pi * float(rate) / float(cpr)
+
+
 def encoder_white_floor(run: Run) -> tuple[float, str]:
     """Lower bound [m/s] of the white noise of the v_x row (13), r (w_L + w_R)/2: the encoder speed quantisation
     q = 2 pi rate / counts_per_rev (``meta.platform.sensors.encoder``), each wheel speed a difference of two
     uniformly quantised counts (sd q / sqrt(6)), averaged over the two wheels: r q / sqrt(12).  An explicit
     ``encoder.noise`` [rad/s] in the meta takes precedence (r noise / sqrt(2)); (0, "none") when neither exists."""
-    r = _geometry(run)[0]
     spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-    spec = spec if isinstance(spec, Mapping) else {}
-    noise = spec.get("noise")
+    noise = spec.get("noise") if isinstance(spec, Mapping) else None
     if isinstance(noise, (int, float)) and math.isfinite(noise) and noise > 0:
-        return r * float(noise) / math.sqrt(2.0), "encoder noise spec"
-    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
-    if all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
-        return r * 2.0 * math.pi * float(rate) / float(cpr) / math.sqrt(12.0), "encoder quantisation"
-    return 0.0, "none"
+        return _geometry(run)[0] * float(noise) / math.sqrt(2.0), "encoder noise spec"
+    quantum = _encoder_speed_quantum(run)
+    return (0.0, "none") if quantum is None else (quantum / math.sqrt(12.0), "encoder quantisation")
 
 
 def encoder_quantisation(run: Run) -> float:
@@ -1236,14 +1097,13 @@ def encoder_quantisation(run: Run) -> float:
     each wheel speed is a count difference times q = 2 pi / counts_per_rev over the sample interval, so its error
     is the difference of two uniform residuals of r q rate_hz (sd r q rate / sqrt(12) each); the mean of two wheels
     gives u with sd r q rate / sqrt(24) (``meta.platform.sensors.encoder``).  RunError when the spec is absent."""
-    r = _geometry(run)[0]
-    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-    spec = spec if isinstance(spec, Mapping) else {}
-    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
-    if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
-        raise RunError(run.where, "meta platform.sensors.encoder", {"counts_per_rev": cpr, "rate_hz": rate},
+    quantum = _encoder_speed_quantum(run)
+    if quantum is None:
+        spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
+        got = {k: spec.get(k) for k in ("counts_per_rev", "rate_hz")} if isinstance(spec, Mapping) else spec
+        raise RunError(run.where, "meta platform.sensors.encoder", got,
                        "the encoder quantisation states need counts_per_rev and rate_hz (> 0)")
-    return r * 2.0 * math.pi * float(rate) / float(cpr) / math.sqrt(24.0)
+    return quantum / math.sqrt(24.0)
 
 
 def _rel_change(new: GaussMarkov | None, old: GaussMarkov | None) -> float:

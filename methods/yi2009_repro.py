@@ -68,8 +68,9 @@ Choices (each one stated where the paper is silent or the testbed differs)
 * Filter consistency (not a Yi claim; issue 4): the horizontal velocity V_I (x, y) NEES against truth after
   5 s (Yi has no absolute position sensor: position NEES is not meaningful), seed-averaged, against the
   two-sided 95% band chi2(2N)/N; paper configuration = the scored plugins with ``store_covariance``, consistent =
-  :class:`methods.yi2009.Yi2009EkfConsistent` (Gauss-Markov error states of the v_x / v_y rows, IMU noise
-  from the rest at the start) identified on the dedicated calibration runs
+  :class:`methods.yi2009.Yi2009EkfConsistent` (slip as a Gauss-Markov state instead of fed back, Gauss-Markov
+  v_y row error, roll Jacobian at the modelled v_By, IMU noise from the rest at the start; an ablation switches
+  each choice in full mode, ``NEES_ABLATIONS``) identified on the dedicated calibration runs
   ``Settings.nees_calibration`` (``scenarios/yi_calib.toml``, gradual command changes, and
   ``scenarios/yi_calib_steps.toml``, step changes; seeds listed there and in nees_consistency.md): same platform and
   concrete as the scored paths, other wheel-speed pairs (Yi's S(gamma) runs on sand and counter-rotating pairs
@@ -892,19 +893,22 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     for (sid, _), run in zip(cfg.nees_calibration, calib_runs):
         for v in VARIANTS:
             est = methods[("consistent", v)].estimate(run)
-            a = body_velocity_errors(run, est)
             calib_nees[(sid, v)] = {"nees": float(np.mean(velocity_nees_series(run, est))),
-                                    "err_along": float(np.sqrt(np.mean(a[:, 0] ** 2))),
-                                    "sd_along": float(np.sqrt(np.mean(a[:, 2] ** 2))),
-                                    "err_across": float(np.sqrt(np.mean(a[:, 1] ** 2))),
-                                    "sd_across": float(np.sqrt(np.mean(a[:, 3] ** 2)))}
+                                    **axis_rms(body_velocity_errors(run, est))}
     out = {"series": {key: np.vstack(v) for key, v in series.items()}, "rms": rms, "calib_nees": calib_nees,
            "abs_yaw_rate": {k: float(np.mean(v)) for k, v in yaw_rate.items()},
-           "axes": {key: np.vstack(v) for key, v in axes.items()}, "axes_seeds": axes, "diag": diag,
+           "axes": axes, "diag": diag,
            "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods,
            "calibration": [f"{sid} seed {seed}" for sid, seed in cfg.nees_calibration]}
     ctx.info[_NEES_KEY] = out
     return out
+
+
+def axis_rms(a: np.ndarray) -> dict[str, float]:
+    """RMS over the rows of :func:`body_velocity_errors` arrays: velocity error and claimed sd along / across the
+    heading (``err_along``, ``err_across``, ``sd_along``, ``sd_across``)."""
+    return {key: float(np.sqrt(np.mean(a[:, j] ** 2)))
+            for j, key in enumerate(("err_along", "err_across", "sd_along", "sd_across"))}
 
 
 def seed_error_correlation(per_seed: Sequence[np.ndarray]) -> float:
@@ -956,12 +960,11 @@ def nees(ctx: Any) -> dict[str, float]:
     out = nees_summary(ne["series"], n, 2, SETTINGS.confidence)
     for (k, c, v), vals in ne["rms"].items():
         out[f"{k}.{c}.v{v}.pos_rms"] = float(np.mean(vals))
-    for (k, c, v), a in ne["axes"].items():  # RMS over seeds and steps: error vs claimed sd, along / across heading
+    for (k, c, v), per_seed in ne["axes"].items():
         if c not in NEES_CONFIGS:
             continue
-        for j, key in enumerate(("err_along", "err_across", "sd_along", "sd_across")):
-            out[f"{k}.{c}.v{v}.{key}"] = float(np.sqrt(np.mean(a[:, j] ** 2)))
-    for (k, c, v), per_seed in ne["axes_seeds"].items():
+        for key, val in axis_rms(np.vstack(per_seed)).items():  # RMS over seeds and steps
+            out[f"{k}.{c}.v{v}.{key}"] = val
         if c == "consistent":
             rho = seed_error_correlation(per_seed)
             out[f"{k}.{c}.v{v}.seed_corr"] = rho

@@ -419,7 +419,7 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         calib_nees = {(sid, v): dict(nees=2.0, err_along=0.01, sd_along=0.01, err_across=0.01, sd_across=0.01)
                       for sid, _ in Y.SETTINGS.nees_calibration for v in (1, 2, 3)}
         return dict(series=series, rms={key: [0.1, 0.1] for key in cells}, diag=diag, noise=noise,
-                    axes={key: np.full((2 * T, 4), 0.01) for key in cells}, axes_seeds=per_seed,
+                    axes=per_seed,
                     calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"])
 
     for clip, expect in ((0.9, True), (0.1, False)):
