@@ -39,8 +39,10 @@ Map: paper equation -> code
                                                                      :func:`ekf_v1`, :func:`ekf_v2`, :func:`ekf_v3`
     (not Yi's)     consistent configuration (issue 4): slip as a state, the v_x (13) / v_y (15) pseudo-measurement
                    errors as first-order Gauss-Markov states, encoder quantisation states, roll Jacobian at the
-                   modelled v_By, IMU noise and levelling precision identified on calibration runs against the
-                   reference sensor                    -> :class:`GaussMarkov`, :func:`run_filter_gm`,
+                   modelled v_By, traction slip of the v_x row, IMU noise and levelling precision identified on
+                   calibration runs against the reference sensor
+                                                       -> :class:`GaussMarkov`, :func:`run_filter_gm`,
+                                                          :class:`TractionSlip`, :func:`fit_traction_slip`,
                                                           :func:`identify_yi_noise`, :func:`gauss_markov_fit`,
                                                           :func:`moving_mean_var`, :func:`ar1_mean_var_factor`,
                                                           :func:`static_imu_noise`, :func:`at_rest_start`,
@@ -88,7 +90,11 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     (off: measured, no effect on the scored paths); (4) evaluates
     the roll column of the v_z row at the modelled v_By = 0 in schemes 1-2 (otherwise roll becomes spuriously
     observable through a drifted v_By estimate: measured on the straight line, the roll error 2.3x the claimed sd,
-    gravity leaking into v_By and a position RMS of 11.7 m).  sigma, tau and the white part of each row (from
+    gravity leaking into v_By and a position RMS of 11.7 m); (5) subtracts the traction slip of the v_x row,
+    c_f f_x + c_w |w_z| from the IMU's specific force and yaw rate (:class:`TractionSlip`, fitted on the calibration
+    runs' 2 s moving means; there it explains most of the row's low-frequency error, which is what made the
+    stationary Gauss-Markov model fitted over gradual and step commands too large for steady paths and too small for
+    the steps).  sigma, tau and the white part of each row (from
     moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
     white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
     sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated runs scenarios/yi_calib.toml and
@@ -748,6 +754,67 @@ def gauss_markov_fit(res: Sequence[np.ndarray], dt: float, windows: Sequence[flo
                        bool(white2 < floor**2 and white_floor > 0))
 
 
+@dataclass(frozen=True)
+class TractionSlip:
+    """Traction slip of the v_x row (13) (not Yi's): the net slip velocity r (w_L + w_R)/2 - v_Bx predicted from the
+    IMU as ``c_f`` f_x + ``c_w`` |w_z| while the wheels turn (0 at rest), with f_x the specific force along the
+    body x axis [m/s^2] and w_z the body yaw rate [rad/s].  Linear region of the slip-traction curve: the
+    longitudinal force the treads transmit is m f_x plus the resistances (f_x = a_x + g sin(pitch) is the
+    accelerometer's reading, so a slope is included), and the slip velocity is proportional to it (Wong, Theory of
+    Ground Vehicles, 4th ed. 2008, Sec. 2.1 / Yu 2010's shear-displacement law at small shear); turning needs
+    opposite longitudinal forces on the two sides, whose slip and skid do not cancel in the mean (the |w_z| term,
+    identified, not derived).  ``c_f`` [s], ``c_w`` [m]; identified by :func:`fit_traction_slip`."""
+
+    c_f: float
+    c_w: float
+
+    def __post_init__(self) -> None:
+        for k in ("c_f", "c_w"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                raise ValueError(f"TractionSlip.{k} = {v!r}: must be finite")
+
+    def offset(self, acc: np.ndarray, gyr: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        """Predicted net slip velocity [m/s] per step (IMU rows on the filter grid; 0 where not ``moving``)."""
+        return np.where(moving, self.c_f * acc[:, 0] + self.c_w * np.abs(gyr[:, 2]), 0.0)
+
+
+TRACTION_FEATURES = ("f_x", "|w_z|")
+
+
+def traction_features(acc: np.ndarray, gyr: np.ndarray) -> np.ndarray:
+    """(n, 2) features of :class:`TractionSlip`: specific force along body x, |yaw rate|."""
+    return np.column_stack((acc[:, 0], np.abs(gyr[:, 2])))
+
+
+def fit_traction_slip(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt: float, window: float = 2.0
+                      ) -> tuple[TractionSlip, dict[str, float]]:
+    """Least-squares fit of :class:`TractionSlip` to row residuals (no-slip row minus reference v_x, NaN = masked)
+    on their ``window``-s moving means (full windows of finite samples, all overlapping windows pooled): the
+    residual's own noise (encoder quantisation, the reference derivative's noise) averages out in the means and
+    sits on the left-hand side only, so the fit is unbiased (numpy.linalg.lstsq).  Returns the model and the RMS of
+    the moving means before / after (the share of the row's low-frequency error the model explains)."""
+    w = max(2, int(round(window / dt)))
+    k = np.ones(w) / w
+    xs, ys = [], []
+    for e, f in zip(res, feats):
+        e = np.asarray(e, float)
+        if e.size < w:
+            continue
+        ok = np.isfinite(e) & np.isfinite(f).all(axis=1)
+        full = np.convolve(ok.astype(float), k, mode="valid") > 1.0 - 0.5 / w
+        ys.append(np.convolve(np.where(ok, e, 0.0), k, mode="valid")[full])
+        xs.append(np.column_stack([np.convolve(np.where(ok, f[:, j], 0.0), k, mode="valid")[full]
+                                   for j in range(f.shape[1])]))
+    if not xs or sum(y.size for y in ys) < 3:
+        raise ValueError(f"fit_traction_slip: no full {window} s window of finite residuals and features")
+    x, y = np.vstack(xs), np.concatenate(ys)
+    c, *_ = np.linalg.lstsq(x, y, rcond=None)
+    return TractionSlip(float(c[0]), float(c[1])), {
+        "window": w * dt, "rms_before": float(np.sqrt(np.mean(y**2))),
+        "rms_after": float(np.sqrt(np.mean((y - x @ c) ** 2))), "windows": int(y.size)}
+
+
 SLIP_CLIP_TOL = 1e-9  # |lambda| >= 1 - tol: the slip (6) is at its clip (diagnostics of the consistent configuration)
 SLIP_ROWS = ("feedback", "state")  # v_x row of run_filter_gm: Yi's (13) with fed-back slip / slip as the b_x state
 
@@ -755,8 +822,8 @@ SLIP_ROWS = ("feedback", "state")  # v_x row of run_filter_gm: Yi's (13) with fe
 def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
                   track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
                   gm_x: GaussMarkov | None, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
-                  slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0
-                  ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
+                  slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0,
+                  vx_offset: np.ndarray | None = None) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
 
     State (P_I, V_I, phi, theta, psi, b_x[, b_y][, u_prev, u]): b_x is the correlated error of the v_x row (13),
@@ -790,6 +857,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     fused v_x row a fresh u_k ~ N(0, enc_quant^2) enters the state (row +1 on u, -1 on u_prev), and after the
     update it becomes u_prev of the next row (augmentation for moving-average measurement noise: Bar-Shalom, Li,
     Kirubarajan 2001 Sec. 8.4).
+    ``vx_offset`` (n,) [m/s] (``slip_rows="state"`` only): a known part of the v_x row's error subtracted from the
+    row, y_x = r (w_L + w_R)/2 - vx_offset(k) (the traction slip of :class:`TractionSlip`); b_x is then the rest.
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
@@ -803,6 +872,12 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     if not (math.isfinite(enc_quant) and enc_quant >= 0):
         raise ValueError(f"run_filter_gm: enc_quant = {enc_quant!r}: must be finite and >= 0")
     n = int(t.size)
+    if vx_offset is not None:
+        vx_offset = np.asarray(vx_offset, float)
+        if slip_rows != "state" or vx_offset.shape != (n,) or not np.isfinite(vx_offset).all():
+            raise ValueError(f"run_filter_gm: vx_offset needs slip_rows='state' (got {slip_rows!r}) and {n} finite "
+                             f"values (got shape {vx_offset.shape}, {int(np.sum(~np.isfinite(vx_offset)))} non-finite)")
+    off_l = vx_offset.tolist() if vx_offset is not None else None
     r, hw = float(wheel_radius), 0.5 * float(track)
     use_slip, use_vy = variant >= 2, variant == 3
     gms = () if gm_x is None else (gm_x, gm_y) if use_vy else (gm_x,)
@@ -935,6 +1010,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 else:
                     pl = pr = 0.0
                 y_x = 0.5 * r * ((w_l + w_r) - (pl * w_l + pr * w_r))  # eq. (13), y_M = 0
+                if off_l is not None:
+                    y_x -= off_l[k]
                 if use_vy:
                     v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
                     den = v_lx + v_rx
@@ -1114,7 +1191,7 @@ def _rel_change(new: GaussMarkov | None, old: GaussMarkov | None) -> float:
 
 def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0,
                       windows: Sequence[float] = (2.0, 4.0, 8.0, 16.0), max_iterations: int = 8, tol: float = 0.05
-                      ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, dict[str, Any]]:
+                      ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, TractionSlip | None, dict[str, Any]]:
     """Noise of the consistent configuration identified on calibration runs with the reference sensor
     (never the truth, never a scored run).
 
@@ -1138,7 +1215,12 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
        ``max_iterations`` passes (with slip feedback (13)-(14) the fused row depends on the filter's own velocity);
        the first pass starts from the paper's sigmas as white parts and sigma = 0.05 m/s, tau = 1 s.  ``info``
        reports every pass, the last relative change and whether it converged.
-    sigma_vz (11) is the paper's (the reference is planar: no v_z reference)."""
+    0. With ``model.traction_slip`` (slip as a state only): the traction slip of the v_x row (:class:`TractionSlip`)
+       is fitted first (:func:`fit_traction_slip`, no-slip row r (w_L + w_R)/2 minus the reference v_x on the
+       moving steps after ``settle``) and subtracted from the row in step 2 (``vx_offset``), so that the
+       Gauss-Markov state carries only the rest of the row's error.
+    sigma_vz (11) is the paper's (the reference is planar: no v_z reference).
+    Returns (params, gm_x, gm_y (scheme 3, else None), traction (None without ``model.traction_slip``), info)."""
     if not runs:
         raise ValueError(f"{model.name}: identify_yi_noise needs at least one calibration run")
     if max_iterations < 1:
@@ -1161,25 +1243,36 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                             "p0_rollpitch": params.p0_rollpitch,
                             "imu_noise_source": "rest" if imu is not None else "paper default",
                             "vx_white_floor": floor_x, "vx_white_floor_source": floor_src}
+    aligned = [(run, *_geometry(run), *align_inputs(run)) for run in runs]
+    traction = None
+    if getattr(model, "traction_slip", False):
+        res_t, feats = [], []
+        for run, r, _, t, acc, gyr, enc in aligned:
+            vx, _, _ = reference_body_velocity(run, t)
+            m = _moving(enc, r, model.params.min_wheel_speed) & (t >= t[0] + settle) & np.isfinite(vx)
+            res_t.append(np.where(m, 0.5 * r * (enc[:, 0] + enc[:, 1]) - vx, np.nan))
+            feats.append(traction_features(acc, gyr))
+        traction, fit_info = fit_traction_slip(res_t, feats, float(np.median([np.median(np.diff(a[3]))
+                                                                             for a in aligned])))
+        info["traction"] = {**asdict(traction), **fit_info}
     change, it = math.inf, 0
     for it in range(max_iterations):
         res_x: list[np.ndarray] = []
         res_y: list[np.ndarray] = []
         s_sq, s_n, dts, kvs = 0.0, 0, [], []
-        for run in runs:
-            r, track = _geometry(run)
-            t, acc, gyr, enc = align_inputs(run)
+        for run, r, track, t, acc, gyr, enc in aligned:
             x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
             opts = model.filter_options(run)
             fr, _, fused = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
                                          s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
-                                         where=run.where, **opts)
+                                         where=run.where, vx_offset=_traction_offset(traction, acc, gyr, enc, r,
+                                                                                    model.params), **opts)
             y_x, y_y = fused[:, 0], fused[:, 1]
             vx, vy, _ = reference_body_velocity(run, t)
             dt_run = float(np.median(np.diff(t)))
             kvs.append((reference_velocity_noise_mean_var(run, dt_run), opts["enc_quant"]))
             m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
-            moving = m & (r * np.abs(np.nan_to_num(enc)).max(axis=1) >= model.params.min_wheel_speed)
+            moving = m & _moving(enc, r, model.params.min_wheel_speed)
             res_x.append(np.where(m & np.isfinite(y_x), np.where(moving, y_x - vx, 0.0), np.nan))
             if model.variant == 3:
                 res_y.append(np.where(m, np.where(moving, y_y - vy, 0.0), np.nan))
@@ -1208,7 +1301,18 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
             break
     info.update({"vx": asdict(gm_x), "vy": asdict(gm_y) if gm_y is not None else None, "filter_dt": dt,
                  "iterations": it + 1, "last_change": change, "converged": bool(it > 0 and change < tol)})
-    return params, gm_x, gm_y, info
+    return params, gm_x, gm_y, traction, info
+
+
+def _moving(enc: np.ndarray, r: float, min_wheel_speed: float) -> np.ndarray:
+    """Steps with a wheel turning (r |w| >= ``min_wheel_speed`` on either side; NaN counts as at rest)."""
+    return r * np.abs(np.nan_to_num(enc)).max(axis=1) >= min_wheel_speed
+
+
+def _traction_offset(traction: TractionSlip | None, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, r: float,
+                     params: EkfParams) -> np.ndarray | None:
+    """``vx_offset`` of :func:`run_filter_gm` for ``traction`` (None without one)."""
+    return None if traction is None else traction.offset(acc, gyr, _moving(enc, r, params.min_wheel_speed))
 
 
 def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params: EkfParams,
@@ -1240,6 +1344,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       the scored paths it changes nothing (steps in band and position RMS within 1-7 points / 3 %: the velocity error
       at the 1-10 s scales the filter integrates over is slip, not quantisation), so the smaller filter is the
       default;
+    * ``traction_slip`` (slip state only): the traction slip c_f f_x + c_w |w_z| (:class:`TractionSlip`) identified
+      on the calibration runs and subtracted from the v_x row, so that the Gauss-Markov state carries only the rest;
     * ``roll_model_jacobian`` (schemes 1-2): the v_z row's roll column at the modelled v_By = 0, so that roll does not
       become spuriously observable through a drifted v_By estimate;
     * the IMU white noise (Q) and the levelled roll/pitch precision (P0) are identified from the rest at
@@ -1260,6 +1366,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     slip_rows: str = "state"  # run_filter_gm: "state" (slip as the b_x state) or Yi's "feedback"
     roll_model_jacobian: bool = True  # run_filter_gm (schemes 1-2)
     quantisation_states: bool = False  # the v_x row's encoder quantisation as states (run_filter_gm enc_quant)
+    traction_slip: bool = True  # the v_x row's traction slip (TractionSlip) identified and subtracted (slip state only)
+    traction: TractionSlip | None = None
     noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     @property
@@ -1275,11 +1383,17 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
                 "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0}
 
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.traction_slip and self.slip_rows != "state":
+            raise ValueError(f"{self.name}: traction_slip needs slip_rows='state' (got {self.slip_rows!r}): with the "
+                             "fed-back slip (13)-(14) the row already carries the filter's slip estimate")
+
     def calibrate(self, runs: Sequence[Run]) -> "Yi2009EkfConsistent":
         base = super().calibrate(runs) if self.refit_s_gamma else self
-        params, gm_x, gm_y, info = identify_yi_noise(runs, base)
-        return replace(base, params=params, gm_x=gm_x, gm_y=gm_y, calibrated=True, noise_info=info,
-                       unlevelled_p0_rollpitch=base.params.p0_rollpitch)
+        params, gm_x, gm_y, traction, info = identify_yi_noise(runs, base)
+        return replace(base, params=params, gm_x=gm_x, gm_y=gm_y, traction=traction, calibrated=True,
+                       noise_info=info, unlevelled_p0_rollpitch=base.params.p0_rollpitch)
 
     def estimate(self, run: Run) -> Estimate:
         if not self.calibrated or self.gm_x is None:
@@ -1292,6 +1406,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
                                      gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
+                                     vx_offset=_traction_offset(self.traction, acc, gyr, enc, r, self.params),
                                      **self.filter_options(run))
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
@@ -1299,6 +1414,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
             cols["b_y"] = bias[:, 1]
         info.update(
             configuration="consistent (not the paper's)", gm_x=asdict(self.gm_x),
+            traction=asdict(self.traction) if self.traction else None,
             gm_y=asdict(self.gm_y) if self.gm_y else None,
             noise={k: v for k, v in self.noise_info.items() if isinstance(v, (int, float, str, bool))},
         )

@@ -779,7 +779,8 @@ NEES_CONFIGS = ("paper", "consistent")
 # Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
 # calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
 NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
-    "slip_feedback": ({"slip_rows": "feedback"}, (2, 3)),
+    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False}, (2, 3)),
+    "no_traction_slip": ({"traction_slip": False}, (1, 2, 3)),
     "quantisation_states": ({"quantisation_states": True}, (1, 2, 3)),
     "roll_at_estimate": ({"roll_model_jacobian": False}, (1, 2)),
 }
@@ -990,6 +991,9 @@ def nees(ctx: Any) -> dict[str, float]:
             if info.get(row):
                 for key in ("sigma", "tau", "white", "white_floored"):
                     out[f"noise.v{v}.{row}.{key}"] = float(info[row][key])
+        if info.get("traction"):
+            for key in ("c_f", "c_w", "rms_before", "rms_after"):
+                out[f"noise.v{v}.traction.{key}"] = float(info["traction"][key])
     lo, hi = out["band_lo"], out["band_hi"]
     calib = ", ".join(ne["calibration"])
     imu_src = "/".join(sorted({str(i["imu_noise_source"]) for i in ne["noise"].values()}))
@@ -998,8 +1002,9 @@ def nees(ctx: Any) -> dict[str, float]:
              f"window t >= {NEES_T_MIN:g} s. in band / below / above: fraction of steps whose seed-averaged NEES is "
              f"inside / below / above the band (pass: >= {NEES_MIN_STEP_FRACTION:.0%} in band). Consistent: "
              "methods.yi2009.Yi2009EkfConsistent (run_filter_gm): slip as the Gauss-Markov error state of the v_x row "
-             "(not fed back; schemes 1 and 2 then fuse the same rows), the v_x (13) and v_y (15) row errors as "
-             "first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
+             "(not fed back; schemes 1 and 2 then fuse the same rows), the traction slip c_f f_x + c_w |w_z| "
+             "(specific force, yaw rate from the IMU) subtracted from the v_x row, the rest of the v_x (13) and the "
+             "v_y (15) row errors as first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
              "white noise "
              f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
              f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
@@ -1033,7 +1038,8 @@ def nees(ctx: Any) -> dict[str, float]:
                   "position RMS [m]. slip_feedback: Yi's fed-back slip (13)-(14) instead of the slip state (schemes "
                   "2-3); quantisation_states: the encoder quantisation as two states (count difference u_k - u_(k-1)) "
                   "instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
-                  "v_By (schemes 1-2). Reported, not judged.", "",
+                  "v_By (schemes 1-2); no_traction_slip: without the traction slip model (the whole row error in the "
+                  "Gauss-Markov state). Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
         for c in ["consistent"] + abl:
             for v in VARIANTS:
