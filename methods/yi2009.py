@@ -384,6 +384,7 @@ class FilterResult:
     s_icr: np.ndarray  # (n,) S(gamma) used in (15) (variant 3), NaN otherwise
     n_updates: tuple[int, int, int]  # fused v_x, v_y, v_z rows
     cov: np.ndarray | None = None  # (n, 9, 9) if requested
+    lin: Any = None  # bench.consistency.Linearisation of run_filter_gm(store_lin=True)
 
 
 def run_filter(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
@@ -823,7 +824,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                   track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
                   gm_x: GaussMarkov | None, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
                   slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0,
-                  vx_offset: np.ndarray | None = None) -> tuple[FilterResult, np.ndarray, np.ndarray]:
+                  vx_offset: np.ndarray | None = None, store_lin: bool = False
+                  ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
 
     State (P_I, V_I, phi, theta, psi, b_x[, b_y][, u_prev, u]): b_x is the correlated error of the v_x row (13),
@@ -859,6 +861,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     Kirubarajan 2001 Sec. 8.4).
     ``vx_offset`` (n,) [m/s] (``slip_rows="state"`` only): a known part of the v_x row's error subtracted from the
     row, y_x = r (w_L + w_R)/2 - vx_offset(k) (the traction slip of :class:`TractionSlip`); b_x is then the rest.
+    ``store_lin``: also return the filter's linearised error recursion (``FilterResult.lin``, a
+    :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q (I - K H)^T + K R K^T, P_k) for
+    the null distribution of the NEES test (not with quantisation states).
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
@@ -878,6 +883,11 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             raise ValueError(f"run_filter_gm: vx_offset needs slip_rows='state' (got {slip_rows!r}) and {n} finite "
                              f"values (got shape {vx_offset.shape}, {int(np.sum(~np.isfinite(vx_offset)))} non-finite)")
     off_l = vx_offset.tolist() if vx_offset is not None else None
+    if store_lin and enc_quant > 0:
+        raise ValueError("run_filter_gm: store_lin is not available with quantisation states (enc_quant > 0)")
+    lin_a: list[np.ndarray] = []
+    lin_c: list[np.ndarray] = []
+    lin_p: list[np.ndarray] = []
     r, hw = float(wheel_radius), 0.5 * float(track)
     use_slip, use_vy = variant >= 2, variant == 3
     gms = () if gm_x is None else (gm_x, gm_y) if use_vy else (gm_x,)
@@ -1056,6 +1066,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 raise FilterDivergence(where, k, t_l[k], f"innovation covariance S (26e) not positive definite: {S.tolist()}")
             K = potrs(L, PHt.T, lower=1)[0].T  # (26d): W = P H^T S^-1
             IKH = Ix - K @ H
+            if store_lin:  # error recursion e_k = (I - K H)(F e + w) + K v, with P the prior F P F^T + Q here
+                lin_a.append(IKH @ F)
+                lin_c.append(IKH @ Qk @ IKH.T + (K * r_k) @ K.T)
             P = IKH @ P @ IKH.T + (K * r_k) @ K.T  # Joseph form (26f)
             P = 0.5 * (P + P.T)
             dx = (K @ innov).tolist()  # (26c)
@@ -1098,11 +1111,21 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         out.append((px, py, pz, vx, vy, vz, phi, th, psi, vbx, vby, vbz, psid, sl_l, sl_r, s_cur, *row_k, *b))
         if store_cov:
             covs.append(P)
+        if store_lin:
+            lin_p.append(P)
+            if k == 0:
+                lin_a.append(Ix)
+                lin_c.append(np.zeros((nx, nx)))
 
     o = np.array(out, dtype=float).reshape(n, 18 + nb)
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
+    lin = None
+    if store_lin:
+        from bench.consistency import Linearisation
+
+        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p))
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
-                       np.array(covs) if store_cov else None)
+                       np.array(covs) if store_cov else None, lin)
     return res, o[:, 18:], o[:, 16:18]
 
 
@@ -1368,6 +1391,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     quantisation_states: bool = False  # the v_x row's encoder quantisation as states (run_filter_gm enc_quant)
     traction_slip: bool = True  # the v_x row's traction slip (TractionSlip) identified and subtracted (slip state only)
     traction: TractionSlip | None = None
+    store_linearisation: bool = False  # info["lin"]: the error recursion (bench.consistency) for the NEES null test
     noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     @property
@@ -1407,7 +1431,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
                                      gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
                                      vx_offset=_traction_offset(self.traction, acc, gyr, enc, r, self.params),
-                                     **self.filter_options(run))
+                                     store_lin=self.store_linearisation, **self.filter_options(run))
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:
@@ -1421,6 +1445,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         if res.cov is not None:
             info["P"] = res.cov[:, :9, :9]  # state order (P_I, V_I, phi, theta, psi), as Yi2009Ekf
             info["P_aug"] = res.cov
+        if res.lin is not None:
+            info["lin"] = res.lin
         return make_estimate(self.name, info, **cols)
 
 
