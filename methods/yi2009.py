@@ -149,6 +149,7 @@ from scipy.linalg import lapack
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
+from bench.consistency import Linearisation
 from bench.registry import Estimate, make_estimate
 from bench.run import Run, RunError, reference_position_noise
 
@@ -395,7 +396,7 @@ class FilterResult:
     s_icr: np.ndarray  # (n,) S(gamma) used in (15) (variant 3), NaN otherwise
     n_updates: tuple[int, int, int]  # fused v_x, v_y, v_z rows
     cov: np.ndarray | None = None  # (n, 9, 9) if requested
-    lin: Any = None  # bench.consistency.Linearisation of run_filter_gm(store_lin=True)
+    lin: Linearisation | None = None  # error recursion of run_filter_gm(store_lin=True)
 
 
 def run_filter(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
@@ -1132,8 +1133,6 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
     lin = None
     if store_lin:
-        from bench.consistency import Linearisation
-
         lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p))
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
                        np.array(covs) if store_cov else None, lin)
