@@ -1134,7 +1134,10 @@ def nees(ctx: Any) -> dict[str, float]:
         f"Paper configuration, mean velocity NEES of schemes 1/2/3 ({fmt('paper')}) against [{lo:.2f}, {hi:.2f}]; steps "
         f"in band {steps('paper')}. Causes: the v_x row (13) is fused at 125 Hz as white noise with sigma_1 = r sigma_en "
         f"(sigma_en = {pp.sigma_enc:g} rad/s), but its error is correlated (identified on the calibration runs for the "
-        f"no-slip row: Gauss-Markov sigma {out['noise.v1.vx.sigma']:.3g} m/s, tau {out['noise.v1.vx.tau']:.3g} s, and the "
+        "no-slip row: "
+        + (f"a traction slip {out['noise.v1.traction.c_f']:.3g} s x f_x {out['noise.v1.traction.c_w']:+.3g} m x |w_z| "
+           "plus " if "noise.v1.traction.c_f" in out else "")
+        + f"a Gauss-Markov error of sigma {out['noise.v1.vx.sigma']:.3g} m/s, tau {out['noise.v1.vx.tau']:.3g} s; and the "
         "encoder quantisation is a count difference, not white), and with slip feedback (schemes 2-3) (13) re-measures "
         "the filter's own previous velocity (a copy of the prior, counted again at every step); scheme 3's v_y row (15) "
         "carries the S(gamma) error "
@@ -1147,7 +1150,8 @@ def nees(ctx: Any) -> dict[str, float]:
     above = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.above"] >= out[f"{k}.consistent.v{v}.below"]]
     below = [(k, v) for k, v in fails if (k, v) not in above]
     txt = (f"Consistent configuration (slip as the Gauss-Markov error state of the v_x row instead of fed back, so "
-           "schemes 1 and 2 coincide; Gauss-Markov v_y row error; roll Jacobian at the modelled v_By in schemes 1-2; "
+           "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; Gauss-Markov "
+           "v_y row error; roll Jacobian at the modelled v_By in schemes 1-2; "
            f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 "
            f"({fmt('consistent')}) against "
            f"[{lo:.2f}, {hi:.2f}]; steps in band {steps('consistent')} (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "
