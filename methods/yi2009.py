@@ -141,7 +141,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field, replace
-from typing import Any, Callable, ClassVar, Mapping, Sequence
+from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -1222,6 +1222,26 @@ def _rel_change(new: GaussMarkov | None, old: GaussMarkov | None) -> float:
     return max(abs(new.sigma - old.sigma) / old.sigma, abs(new.tau - old.tau) / old.tau)
 
 
+class _CalibrationRun(NamedTuple):
+    """A calibration run's filter inputs and reference quantities, computed once for all passes of
+    :func:`identify_yi_noise`."""
+
+    run: Run
+    r: float
+    track: float
+    t: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray
+    enc: np.ndarray
+    vx: np.ndarray  # reference body velocity on the filter grid
+    vy: np.ndarray
+    dt: float
+    ref_noise: Callable[[int], float]  # reference_velocity_noise_mean_var
+    mask: np.ndarray  # encoders finite, after the settle time, inside the reference
+    moving: np.ndarray  # mask and a wheel turning
+    opts: dict[str, Any]  # the model's run_filter_gm options
+
+
 def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0,
                       windows: Sequence[float] = (2.0, 4.0, 8.0, 16.0), max_iterations: int = 8, tol: float = 0.05
                       ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, TractionSlip | None, dict[str, Any]]:
@@ -1276,49 +1296,49 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                             "p0_rollpitch": params.p0_rollpitch,
                             "imu_noise_source": "rest" if imu is not None else "paper default",
                             "vx_white_floor": floor_x, "vx_white_floor_source": floor_src}
-    aligned = [(run, *_geometry(run), *align_inputs(run)) for run in runs]
+    # everything that does not depend on the filter's pass, once per run: inputs, reference body velocity, its noise
+    cal = []
+    for run in runs:
+        r, track = _geometry(run)
+        t, acc, gyr, enc = align_inputs(run)
+        vx, vy, _ = reference_body_velocity(run, t)
+        dt_run = float(np.median(np.diff(t)))
+        m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
+        cal.append(_CalibrationRun(run, r, track, t, acc, gyr, enc, vx, vy, dt_run,
+                                   reference_velocity_noise_mean_var(run, dt_run), m,
+                                   m & _moving(enc, r, model.params.min_wheel_speed), model.filter_options(run)))
+    dt = float(np.median([c.dt for c in cal]))
     traction = None
     if getattr(model, "traction_slip", False):
-        res_t, feats = [], []
-        for run, r, _, t, acc, gyr, enc in aligned:
-            vx, _, _ = reference_body_velocity(run, t)
-            m = _moving(enc, r, model.params.min_wheel_speed) & (t >= t[0] + settle) & np.isfinite(vx)
-            res_t.append(np.where(m, 0.5 * r * (enc[:, 0] + enc[:, 1]) - vx, np.nan))
-            feats.append(traction_features(acc, gyr))
-        traction, fit_info = fit_traction_slip(res_t, feats, float(np.median([np.median(np.diff(a[3]))
-                                                                             for a in aligned])))
+        res_t = [np.where(_moving(c.enc, c.r, model.params.min_wheel_speed) & (c.t >= c.t[0] + settle)
+                          & np.isfinite(c.vx), 0.5 * c.r * (c.enc[:, 0] + c.enc[:, 1]) - c.vx, np.nan) for c in cal]
+        traction, fit_info = fit_traction_slip(res_t, [traction_features(c.acc, c.gyr) for c in cal], dt)
         info["traction"] = {**asdict(traction), **fit_info}
+    offsets = [_traction_offset(traction, c.acc, c.gyr, c.enc, c.r, model.params) for c in cal]
+
+    def known_x(w: int) -> float:  # reference noise + quantisation (u_k - u_(k-1): its W-mean telescopes)
+        return float(np.mean([c.ref_noise(w) + 2.0 * c.opts["enc_quant"] * c.opts["enc_quant"] / (w * w) for c in cal]))
+
+    def known_y(w: int) -> float:  # reference noise
+        return float(np.mean([c.ref_noise(w) for c in cal]))
+
     change, it = math.inf, 0
     for it in range(max_iterations):
         res_x: list[np.ndarray] = []
         res_y: list[np.ndarray] = []
-        s_sq, s_n, dts, kvs = 0.0, 0, [], []
-        for run, r, track, t, acc, gyr, enc in aligned:
-            x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
-            opts = model.filter_options(run)
-            fr, _, fused = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=model.variant,
-                                         s_gamma=model.s_gamma, params=params, x0=x0, p0=p0, gm_x=gm_x, gm_y=gm_y,
-                                         where=run.where, vx_offset=_traction_offset(traction, acc, gyr, enc, r,
-                                                                                    model.params), **opts)
+        s_sq, s_n = 0.0, 0
+        for c, off in zip(cal, offsets):
+            x0, p0 = _initial_state_consistent(c.acc, c.enc, c.r, params, model.initial_pose,
+                                               model.params.p0_rollpitch)
+            fr, _, fused = run_filter_gm(c.t, c.acc, c.gyr, c.enc, wheel_radius=c.r, track=c.track,
+                                         variant=model.variant, s_gamma=model.s_gamma, params=params, x0=x0, p0=p0,
+                                         gm_x=gm_x, gm_y=gm_y, where=c.run.where, vx_offset=off, **c.opts)
             y_x, y_y = fused[:, 0], fused[:, 1]
-            vx, vy, _ = reference_body_velocity(run, t)
-            dt_run = float(np.median(np.diff(t)))
-            kvs.append((reference_velocity_noise_mean_var(run, dt_run), opts["enc_quant"]))
-            m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
-            moving = m & _moving(enc, r, model.params.min_wheel_speed)
-            res_x.append(np.where(m & np.isfinite(y_x), np.where(moving, y_x - vx, 0.0), np.nan))
+            res_x.append(np.where(c.mask & np.isfinite(y_x), np.where(c.moving, y_x - c.vx, 0.0), np.nan))
             if model.variant == 3:
-                res_y.append(np.where(m, np.where(moving, y_y - vy, 0.0), np.nan))
-                s_sq += float(np.sum(fr.s_icr[moving] ** 2))
-                s_n += int(np.count_nonzero(moving))
-            dts.append(dt_run)
-        dt = float(np.median(dts))
-
-        def known_x(w: int) -> float:  # reference noise + quantisation (u_k - u_(k-1): its W-mean telescopes)
-            return float(np.mean([f(w) + 2.0 * q * q / (w * w) for f, q in kvs]))
-
-        def known_y(w: int) -> float:  # reference noise
-            return float(np.mean([f(w) for f, _ in kvs]))
+                res_y.append(np.where(c.mask, np.where(c.moving, y_y - c.vy, 0.0), np.nan))
+                s_sq += float(np.sum(fr.s_icr[c.moving] ** 2))
+                s_n += int(np.count_nonzero(c.moving))
 
         new_x = gauss_markov_fit(res_x, dt, windows, known_x, floor_x if not model.quantisation_states else 0.0)
         new_y = None

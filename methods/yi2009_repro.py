@@ -1071,9 +1071,9 @@ def nees(ctx: Any) -> dict[str, float]:
                          f"{out[c + '.sd_along']:.3g} | {out[c + '.err_across']:.3g} / {out[c + '.sd_across']:.3g} | "
                          f"{out[c + '.roll_err']:.3g} / {out[c + '.roll_sd']:.3g} | "
                          f"{out[c + '.seed_corr']:.2f} / {out[c + '.n_eff']:.2g} |")
-    if "consistent_null_ok" in out and any(key.endswith(".null_p_mean") for key in out):
+    if nulls:
         nd = int(out["null_draws"])
-        n_cells = sum(1 for key in out if key.endswith(".null_p_mean"))
+        n_cells = len(nulls)
         lines += ["", "## Null distribution: what a consistent filter with the same error dynamics would give", "",
                   f"bench.consistency: {nd} simulated experiments of {n} runs, each run the consistent filter's own "
                   "linearised error recursion on that seed (e_k = (I - K H) F e_(k-1) + w_k, Cov w_k the Joseph "
@@ -1233,15 +1233,13 @@ def nees(ctx: Any) -> dict[str, float]:
                             f"{out[f'{k}.consistent.v{v}.n_eff']:.2g})" for k, v in common)
                 + f" for N = {n}: there the seed average is closer to one realisation of that error than to an average "
                   f"of {n} independent runs, which the band assumes. ")
-    if "consistent_null_ok" in out:
-        sig = [(k, v) for k, v in cells if f"{k}.consistent.v{v}.null_p_mean" in out
-               and min(out[f"{k}.consistent.v{v}.null_p_mean"], out[f"{k}.consistent.v{v}.null_p_in_band"])
-               < NULL_ALPHA / len(cells)]
+    if nulls:
+        sig = [(k, v) for k, v in nulls
+               if min(out[f"{k}.consistent.v{v}.null_p_mean"], out[f"{k}.consistent.v{v}.null_p_in_band"]) < alpha]
         txt += (f"Calibrated test (bench.consistency, {int(out['null_draws'])} simulated experiments of the filter's own "
                 "error recursion per cell: what a consistent filter with these error dynamics gives): the >= "
                 f"{NEES_MIN_STEP_FRACTION:.0%} rule passes a consistent filter in "
-                + ", ".join(f"{out[f'{k}.consistent.v{v}.null_rule_pass']:.0%}" for k, v in cells
-                            if f"{k}.consistent.v{v}.null_rule_pass" in out)
+                + ", ".join(f"{out[f'{k}.consistent.v{v}.null_rule_pass']:.0%}" for k, v in nulls)
                 + " of the experiments (cells in table order); "
                 + (f"significant at {NULL_ALPHA:g} (Bonferroni over the cells) in {name(sig)}: the failures there "
                    "are not the test's scatter. " if sig else "no cell is significant: the failures are within the "
