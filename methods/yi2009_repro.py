@@ -780,8 +780,9 @@ NEES_CONFIGS = ("paper", "consistent")
 # Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
 # calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
 NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
-    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False}, (2, 3)),
+    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False, "icr_correction": False}, (2, 3)),
     "no_traction_slip": ({"traction_slip": False}, (1, 2, 3)),
+    "no_icr_correction": ({"icr_correction": False}, (3,)),
     "quantisation_states": ({"quantisation_states": True}, (1, 2, 3)),
     "roll_at_estimate": ({"roll_model_jacobian": False}, (1, 2)),
 }
@@ -1033,9 +1034,10 @@ def nees(ctx: Any) -> dict[str, float]:
             if info.get(row):
                 for key in ("sigma", "tau", "white", "white_floored"):
                     out[f"noise.v{v}.{row}.{key}"] = float(info[row][key])
-        if info.get("traction"):
-            for key in ("c_f", "c_w", "rms_before", "rms_after"):
-                out[f"noise.v{v}.traction.{key}"] = float(info["traction"][key])
+        for part, keys in (("traction", ("c_f", "c_w")), ("icr", ("c_0", "c_1"))):
+            if info.get(part):
+                for key in keys + ("rms_before", "rms_after"):
+                    out[f"noise.v{v}.{part}.{key}"] = float(info[part][key])
     lo, hi = out["band_lo"], out["band_hi"]
     calib = ", ".join(ne["calibration"])
     imu_src = "/".join(sorted({str(i["imu_noise_source"]) for i in ne["noise"].values()}))
@@ -1045,8 +1047,9 @@ def nees(ctx: Any) -> dict[str, float]:
              f"inside / below / above the band (pass: >= {NEES_MIN_STEP_FRACTION:.0%} in band). Consistent: "
              "methods.yi2009.Yi2009EkfConsistent (run_filter_gm): slip as the Gauss-Markov error state of the v_x row "
              "(not fed back; schemes 1 and 2 then fuse the same rows), the traction slip c_f f_x + c_w |w_z| "
-             "(specific force, yaw rate from the IMU) subtracted from the v_x row, the rest of the v_x (13) and the "
-             "v_y (15) row errors as first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
+             "(specific force, yaw rate from the IMU) subtracted from the v_x row, in scheme 3 the S correction "
+             "(c_0 + c_1 v |w_z|) w_z (v the encoders' no-slip speed) subtracted from the v_y row (15), the rest of "
+             "the v_x (13) and the v_y (15) row errors as first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
              "white noise "
              f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
              f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
@@ -1104,7 +1107,8 @@ def nees(ctx: Any) -> dict[str, float]:
                   "2-3); quantisation_states: the encoder quantisation as two states (count difference u_k - u_(k-1)) "
                   "instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
                   "v_By (schemes 1-2); no_traction_slip: without the traction slip model (the whole row error in the "
-                  "Gauss-Markov state). Reported, not judged.", "",
+                  "Gauss-Markov state); no_icr_correction: scheme 3 without the S correction of the v_y row (the whole "
+                  "S(gamma) error in the Gauss-Markov state). Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
         for c in ["consistent"] + abl:
             for v in VARIANTS:
@@ -1140,8 +1144,11 @@ def nees(ctx: Any) -> dict[str, float]:
         + f"a Gauss-Markov error of sigma {out['noise.v1.vx.sigma']:.3g} m/s, tau {out['noise.v1.vx.tau']:.3g} s; and the "
         "encoder quantisation is a count difference, not white), and with slip feedback (schemes 2-3) (13) re-measures "
         "the filter's own previous velocity (a copy of the prior, counted again at every step); scheme 3's v_y row (15) "
-        "carries the S(gamma) error "
-        f"(sigma {out['noise.v3.vy.sigma']:.3g} m/s, tau {out['noise.v3.vy.tau']:.3g} s) fused as white with sigma_2 = "
+        "carries the S(gamma) error ("
+        + (f"a correction (c_0 + c_1 v |w_z|) w_z of S, c_0 {out['noise.v3.icr.c_0']:+.3g} m, c_1 "
+           f"{out['noise.v3.icr.c_1']:+.3g} s^2, 2 s RMS of the row error {out['noise.v3.icr.rms_before']:.3g} -> "
+           f"{out['noise.v3.icr.rms_after']:.3g} m/s, plus a rest of " if "noise.v3.icr.c_0" in out else "")
+        + f"sigma {out['noise.v3.vy.sigma']:.3g} m/s, tau {out['noise.v3.vy.tau']:.3g} s) fused as white with sigma_2 = "
         f"{pp.sigma_vy:g} m/s. See nees_consistency.md."))
     cells = [(k, v) for k in PATHS for v in VARIANTS]
     fails = [(k, v) for k, v in cells if out[f"{k}.consistent.v{v}.in_band"] < NEES_MIN_STEP_FRACTION]
@@ -1150,8 +1157,9 @@ def nees(ctx: Any) -> dict[str, float]:
     above = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.above"] >= out[f"{k}.consistent.v{v}.below"]]
     below = [(k, v) for k, v in fails if (k, v) not in above]
     txt = (f"Consistent configuration (slip as the Gauss-Markov error state of the v_x row instead of fed back, so "
-           "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; Gauss-Markov "
-           "v_y row error; roll Jacobian at the modelled v_By in schemes 1-2; "
+           "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; in scheme 3 "
+           "the S correction (c_0 + c_1 v |w_z|) w_z subtracted from the v_y row; Gauss-Markov v_y row error; "
+           "roll Jacobian at the modelled v_By in schemes 1-2; "
            f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 "
            f"({fmt('consistent')}) against "
            f"[{lo:.2f}, {hi:.2f}]; steps in band {steps('consistent')} (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "
@@ -1215,10 +1223,15 @@ def nees(ctx: Any) -> dict[str, float]:
         if across3:
             txt += (f"; most across the heading in {name(across3)} (mean |yaw rate| "
                     + ", ".join(f"{out[f'{k}.abs_yaw_rate']:.2g} rad/s ({k})" for k, _ in across3)
-                    + "): the v_y row (15) error is the S(gamma) error times the yaw rate, ~0 where the robot does not "
-                    "turn, but its Gauss-Markov state is stationary and keeps the lateral covariance wide (a state on "
-                    "the S error itself, multiplied by the yaw rate, was tried: it learns S within a run and was "
-                    "overconfident on the calibration runs)")
+                    + "): "
+                    + ("the v_y row (15) error left after the S correction (Gauss-Markov sigma "
+                       f"{out['noise.v3.vy.sigma']:.3g} m/s, identified against the vision reference on the calibration "
+                       "runs, whose commands change in steps) over-covers these paths' error"
+                       if "noise.v3.icr.c_0" in out else
+                       "the v_y row (15) error is the S(gamma) error times the yaw rate, ~0 where the robot does not "
+                       "turn, but its Gauss-Markov state is stationary and keeps the lateral covariance wide")
+                    + " (a state on the S error itself, multiplied by the yaw rate, was tried: see "
+                    "methods.yi2009.Yi2009EkfConsistent)")
         cal = ", ".join(f"{sid} " + "/".join(f"{out[f'calib.{sid}.v{v}.nees']:.2f}" for v in VARIANTS)
                         for sid, _ in SETTINGS.nees_calibration)
         txt += (f". On the calibration runs themselves (truth, in-sample diagnostic) the mean NEES of schemes 1/2/3 is "

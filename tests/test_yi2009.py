@@ -61,6 +61,8 @@ from methods.yi2009 import (
     static_imu_noise,
     fit_traction_slip,
     traction_features,
+    fit_icr_correction,
+    icr_features,
 )
 
 RPM_TO_RADS = 2.0 * math.pi / 60.0
@@ -613,7 +615,7 @@ def test_static_imu_noise_and_scheme1_bias_identified_on_synthetic_calibration_r
     sa, sg, n = static_imu_noise(runs)
     assert sa == pytest.approx(TESTBED.acc_noise, rel=0.1) and sg == pytest.approx(TESTBED.gyr_noise, rel=0.1)
     assert 0.6 * len(runs) * TESTBED.t_rest * TESTBED.rate_hz <= n <= len(runs) * TESTBED.t_rest * TESTBED.rate_hz
-    params, gm_x, gm_y, _, info = identify_yi_noise(runs, ekf_v1_consistent(traction_slip=False), max_iterations=1)
+    params, gm_x, gm_y, _, _, info = identify_yi_noise(runs, ekf_v1_consistent(traction_slip=False), max_iterations=1)
     assert gm_y is None and (params.accel_noise, params.gyro_noise) == (sa, sg)
     assert params.p0_rollpitch == pytest.approx(sa / (G * math.sqrt(EkfParams().level_samples)), rel=1e-12)
     sq, n = 0.0, 0
@@ -774,12 +776,75 @@ def test_gm_filter_vx_offset_is_the_row_shifted_by_the_offset():
     assert not ekf_v2_consistent(slip_rows="feedback", traction_slip=False).traction_slip
 
 
-def test_scheme3_vy_gauss_markov_identified_from_a_wrong_s_gamma():
-    """Scheme 3 on steady turns whose true S is constant (eq. (41) with a2 = 0) identified with half of it: the
-    v_y row's error is (S_true - S_used) x yaw rate, constant on each turn after the ramp (closed form), so its
-    Gauss-Markov sigma is the RMS of that bias (mean kept) and tau is long."""
+def test_fit_icr_correction_recovers_the_generating_coefficients():
+    """v_y row residuals built as (c_0 + c_1 v |w_z|) w_z + AR(1) (sigma 0.002, tau 3 s) + white (0.005), with the
+    yaw rate seen through gyro-level noise (0.005 rad/s) and the speed through 2000-count encoders' quantisation as
+    the filter sees them: the 2 s moving-mean least squares recovers (c_0, c_1) within 5 %; the offset is
+    (c_0 + c_1 v |w_z|) w_z on the moving steps and 0 elsewhere."""
+    rng = np.random.default_rng(12)
+    dt, n, c_0, c_1 = 0.008, 7500, -0.12, 0.08
+    res, feats = [], []
+    for _ in range(6):
+        tt = np.arange(n) * dt
+        v = 0.3 + 0.25 * np.sin(2 * np.pi * tt / rng.uniform(20, 40))
+        w_z = 0.6 * np.sin(2 * np.pi * tt / rng.uniform(10, 20) + rng.uniform(0, 6))
+        e = (c_0 + c_1 * v * np.abs(w_z)) * w_z + _ar1(rng, n, dt, 3.0, 0.002) + 0.005 * rng.standard_normal(n)
+        e[:100] = np.nan
+        res.append(e)
+        q = 2 * np.pi / 2000 * 125.0  # one count per sample [rad/s]
+        enc = np.round(np.column_stack((v, v)) / R_WHEEL / q + rng.uniform(-0.5, 0.5, (n, 2))) * q
+        gyr = np.column_stack((np.zeros((n, 2)), w_z + 0.005 * rng.standard_normal(n)))
+        feats.append(icr_features(enc, gyr, R_WHEEL))
+    model, info = fit_icr_correction(res, feats, dt)
+    assert model.c_0 == pytest.approx(c_0, rel=0.05) and model.c_1 == pytest.approx(c_1, rel=0.05)
+    assert info["rms_after"] < 0.5 * info["rms_before"]
+    moving = np.arange(n) % 2 == 0
+    off = model.offset(enc, gyr, R_WHEEL, moving)
+    assert np.array_equal(off[~moving], np.zeros(np.count_nonzero(~moving)))
+    v_enc = 0.5 * R_WHEEL * (enc[:, 0] + enc[:, 1])
+    expect = (model.c_0 + model.c_1 * v_enc * np.abs(gyr[:, 2])) * gyr[:, 2]
+    assert np.allclose(off[moving], expect[moving], rtol=1e-12, atol=1e-15)
+    with pytest.raises(ValueError, match="fit_icr_correction: no full"):
+        fit_icr_correction([np.full(100, np.nan)], [np.zeros((100, 2))], dt)
+
+
+def test_gm_filter_vy_offset_is_subtracted_from_the_fused_row_and_refused_where_undefined():
+    """run_filter_gm with ``vy_offset`` o(k) (scheme 3): with the v_y row given no weight (white 1e6 m/s) the states
+    are those without the offset (1e-9) and the fused v_y row is the row without it minus o(k) at every fused step
+    (1e-12); with weight, the estimate changes; offsets outside scheme 3, of the wrong length or NaN are refused,
+    and so is the consistent configuration's S correction with the fed-back slip."""
+    run = synthetic_run("figure8", 3).without_truth()
+    t, acc, gyr, enc = align_inputs(run)
+    p = EkfParams()
+    x0, p0 = initial_state(acc, enc, R_WHEEL, p, (0.0, 0.0, 0.0))
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=GaussMarkov(0.005, 2.0, 0.01), gm_y=GaussMarkov(0.01, 2.0, 0.005), variant=3, slip_rows="state")
+    off = -0.1 * gyr[:, 2]
+    weightless = {**kw, "gm_y": GaussMarkov(1e-9, 2.0, 1e6)}  # the v_y row without weight: same states either way
+    a, _, rows_a = run_filter_gm(t, acc, gyr, enc, vy_offset=off, **weightless)
+    b, _, rows_b = run_filter_gm(t, acc, gyr, enc, **weightless)
+    fused = np.isfinite(rows_b[:, 1])
+    assert fused.sum() > 0.9 * t.size and np.allclose(a.state, b.state, rtol=0, atol=1e-9)
+    assert np.allclose(rows_a[fused, 1], rows_b[fused, 1] - off[fused], rtol=0, atol=1e-12)
+    a, _, _ = run_filter_gm(t, acc, gyr, enc, vy_offset=off, **kw)
+    b, _, _ = run_filter_gm(t, acc, gyr, enc, **kw)
+    assert np.max(np.abs(a.v_body[:, 1] - b.v_body[:, 1])) > 0.01
+    with pytest.raises(ValueError, match="vy_offset"):
+        run_filter_gm(t, acc, gyr, enc, vy_offset=off, **{**kw, "variant": 1})
+    with pytest.raises(ValueError, match="vy_offset"):
+        run_filter_gm(t, acc, gyr, enc, vy_offset=off[:-1], **kw)
+    with pytest.raises(ValueError, match="vy_offset"):
+        run_filter_gm(t, acc, gyr, enc, vy_offset=np.where(np.arange(t.size) == 7, np.nan, off), **kw)
+    with pytest.raises(ValueError, match="icr_correction"):
+        ekf_v3_consistent(slip_rows="feedback", traction_slip=False)
+    assert ekf_v2_consistent(slip_rows="feedback", traction_slip=False).icr_correction  # scheme 3 only
+
+
+def _steady_turns_with_half_s():
+    """Three steady turns (after a 1 s ramp) whose true S is 0.2 m at every gamma (eq. (41) with a2 = 0), the S(gamma)
+    they are identified with (0.1 m) and the RMS of the v_y row's error (S_true - S_used) x yaw rate after the first
+    second (closed form)."""
     s_true = (0.02, 0.0, 0.1)  # S = 0.2 m at every gamma
-    used = SGamma(0.01, 0.0, 0.1)
     runs, sq, n = [], 0.0, 0
     for i, (wl, wr) in enumerate(((80, 40), (40, 80), (90, 30))):
         sens = dataclasses.replace(TESTBED, lam0=0.03)
@@ -789,8 +854,33 @@ def test_scheme3_vy_gauss_markov_identified_from_a_wrong_s_gamma():
         sq += float(np.sum(((0.2 - 0.1) * wz) ** 2))
         n += tm.size
         runs.append(run.without_truth())
-    _, _, gm_y, _, info = identify_yi_noise(runs, ekf_v3_consistent(s_gamma=used, traction_slip=False), max_iterations=2)
-    assert gm_y.sigma == pytest.approx(math.sqrt(sq / n), rel=0.15)
+    return runs, SGamma(0.01, 0.0, 0.1), math.sqrt(sq / n)
+
+
+def test_scheme3_icr_correction_identified_from_a_wrong_s_gamma():
+    """The steady turns of :func:`_steady_turns_with_half_s`: the v_y row's error is (S_true - S_used) w_z = 0.1 m x
+    w_z (closed form), so the S correction is c_0 = 0.1 m with no speed term (c_1 v |w_z| below 1 cm at these
+    turns), and the Gauss-Markov state identified after it carries less than a fifth of the uncorrected error's
+    RMS."""
+    runs, used, rms_error = _steady_turns_with_half_s()
+    _, _, gm_y, _, icr, info = identify_yi_noise(runs, ekf_v3_consistent(s_gamma=used, traction_slip=False),
+                                                 max_iterations=2)
+    v_wz = 0.0
+    for run in runs:
+        _, _, gyr, enc = align_inputs(run)
+        v_wz = max(v_wz, float(np.max(0.5 * R_WHEEL * (enc[:, 0] + enc[:, 1]) * np.abs(gyr[:, 2]))))
+    assert icr.c_0 == pytest.approx(0.1, rel=0.1) and abs(icr.c_1) * v_wz < 0.01
+    assert gm_y.sigma < 0.2 * rms_error and info["icr"]["rms_after"] < 0.2 * info["icr"]["rms_before"]
+
+
+def test_scheme3_vy_gauss_markov_identified_from_a_wrong_s_gamma():
+    """Scheme 3 on the steady turns of :func:`_steady_turns_with_half_s` without the S correction: the v_y row's
+    error is (S_true - S_used) x yaw rate, constant on each turn after the ramp (closed form), so its Gauss-Markov
+    sigma is the RMS of that bias (mean kept) and tau is long."""
+    runs, used, rms_error = _steady_turns_with_half_s()
+    _, _, gm_y, _, _, info = identify_yi_noise(runs, ekf_v3_consistent(s_gamma=used, traction_slip=False,
+                                                                          icr_correction=False), max_iterations=2)
+    assert gm_y.sigma == pytest.approx(rms_error, rel=0.15)
     assert gm_y.tau > 10.0 and info["iterations"] <= 2
 
 
