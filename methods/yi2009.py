@@ -98,8 +98,8 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     stationary Gauss-Markov model fitted over gradual and step commands too large for steady paths and too small for
     the steps); (6) in scheme 3 subtracts the S correction of the v_y row, (c_0 + c_1 v |w_z|) w_z
     (:class:`IcrCorrection`, fitted the same way: the testbed's S grows with the centripetal acceleration, which
-    S(gamma) (41) cannot express; 2 s RMS of the row error on the calibration runs 0.03 -> 0.01 m/s against the
-    reference).  sigma, tau and the white part of each row (from
+    S(gamma) (41) cannot express; 2 s RMS of the row error on the calibration runs 0.032 -> 0.0032 m/s against
+    the reference).  sigma, tau and the white part of each row (from
     moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
     white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
     sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated runs scenarios/yi_calib.toml and
