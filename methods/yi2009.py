@@ -803,9 +803,6 @@ class TractionSlip:
         return np.where(moving, self.c_f * acc[:, 0] + self.c_w * np.abs(gyr[:, 2]), 0.0)
 
 
-TRACTION_FEATURES = ("f_x", "|w_z|")
-
-
 def traction_features(acc: np.ndarray, gyr: np.ndarray) -> np.ndarray:
     """(n, 2) features of :class:`TractionSlip`: specific force along body x, |yaw rate|."""
     return np.column_stack((acc[:, 0], np.abs(gyr[:, 2])))
@@ -850,14 +847,16 @@ def fit_traction_slip(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt
 @dataclass(frozen=True)
 class IcrCorrection:
     """Correction of S in the v_y row (15) (not Yi's): S(gamma) (41) + ``c_0`` + ``c_1`` v |w_z| while the wheels
-    turn, so that the row is y_y = -(S + c_0 + c_1 v |w_z|) w_z, with v = r (w_L + w_R)/2 the encoders' no-slip
-    speed [m/s] and w_z the gyro's yaw rate [rad/s].  Eq. (41) makes S a function of gamma alone; the lateral
-    force balance of a skid-steered turn shifts the ICR line by a distance proportional to the centripetal
-    acceleration v |w_z| over the friction (the longitudinal shift of the turning centre of a tracked vehicle,
-    Wong, Theory of Ground Vehicles, 4th ed. 2008, Ch. 7, steering of tracked vehicles), which (41) cannot hold at other speeds than the
-    identification runs' (the testbed's true S at one gamma rises with speed in proportion to v |w_z|, see
-    :class:`Yi2009EkfConsistent`); ``c_0`` takes the constant part of the error of the S(gamma) used.  ``c_0`` [m], ``c_1``
-    [s^2]; identified by :func:`fit_icr_correction` on the calibration runs."""
+    turn, so that the row is y_y = -S(gamma) psi_dot - (c_0 + c_1 v |w_z|) w_z, with psi_dot the Euler yaw rate
+    (10e) of (15), v = r (w_L + w_R)/2 the encoders' no-slip speed [m/s] and w_z the gyro's yaw rate [rad/s] (the
+    correction is computed from the sensors before the filter runs; on level ground psi_dot = w_z).  Eq. (41)
+    makes S a function of gamma alone; the lateral force balance of a skid-steered turn shifts the ICR line by a
+    distance proportional to the centripetal acceleration v |w_z| over the friction (the longitudinal shift of the
+    turning centre of a tracked vehicle, Wong, Theory of Ground Vehicles, 4th ed. 2008, Ch. 7, steering of tracked
+    vehicles), which (41) cannot hold at other speeds than the identification runs' (the testbed's true S at one
+    gamma rises with speed in proportion to v |w_z|, see :class:`Yi2009EkfConsistent`); ``c_0`` takes the
+    constant part of the error of the S(gamma) used.  ``c_0`` [m], ``c_1`` [s^2]; identified by
+    :func:`fit_icr_correction` on the calibration runs."""
 
     c_0: float
     c_1: float
@@ -865,27 +864,32 @@ class IcrCorrection:
     def __post_init__(self) -> None:
         _require_finite(self, ("c_0", "c_1"))
 
-    def delta_s(self, enc: np.ndarray, gyr: np.ndarray, r: float) -> np.ndarray:
-        """The correction c_0 + c_1 v |w_z| of S [m] per step."""
+    def delta_s(self, gyr: np.ndarray, enc: np.ndarray, r: float) -> np.ndarray:
+        """The correction c_0 + c_1 v |w_z| of S [m] per step (NaN where an encoder sample is NaN)."""
         return self.c_0 + self.c_1 * _no_slip_speed(enc, r) * np.abs(gyr[:, 2])
 
-    def offset(self, enc: np.ndarray, gyr: np.ndarray, r: float, moving: np.ndarray) -> np.ndarray:
-        """The v_y row's predicted error [m/s] per step, (c_0 + c_1 v |w_z|) w_z (0 where not ``moving``)."""
-        return np.where(moving, self.delta_s(enc, gyr, r) * gyr[:, 2], 0.0)
+    def gyro_gain(self, gyr: np.ndarray, enc: np.ndarray, r: float) -> np.ndarray:
+        """d(offset)/d w_z = c_0 + 2 c_1 v |w_z| [m] per step: the correction's share of the gain from the gyro's
+        noise to the row (the row's total gain is S(gamma) + this)."""
+        return self.c_0 + 2.0 * self.c_1 * _no_slip_speed(enc, r) * np.abs(gyr[:, 2])
+
+    def offset(self, gyr: np.ndarray, enc: np.ndarray, r: float, moving: np.ndarray) -> np.ndarray:
+        """The v_y row's predicted error [m/s] per step, (c_0 + c_1 v |w_z|) w_z (0 where not ``moving`` or where an
+        encoder sample is NaN)."""
+        d = self.delta_s(gyr, enc, r)
+        return np.where(moving & np.isfinite(d), np.nan_to_num(d) * gyr[:, 2], 0.0)
 
 
-ICR_FEATURES = ("w_z", "v w_z |w_z|")
-
-
-def icr_features(enc: np.ndarray, gyr: np.ndarray, r: float) -> np.ndarray:
-    """(n, 2) features of :class:`IcrCorrection`: yaw rate, no-slip speed x yaw rate x |yaw rate| (NaN speed -> 0)."""
+def icr_features(gyr: np.ndarray, enc: np.ndarray, r: float) -> np.ndarray:
+    """(n, 2) features of :class:`IcrCorrection`: yaw rate, no-slip speed x yaw rate x |yaw rate| (NaN where an
+    encoder sample is NaN)."""
     wz = gyr[:, 2]
     return np.column_stack((wz, _no_slip_speed(enc, r) * wz * np.abs(wz)))
 
 
 def _no_slip_speed(enc: np.ndarray, r: float) -> np.ndarray:
-    """r (w_L + w_R)/2 per step [m/s], 0 where an encoder sample is NaN."""
-    return 0.5 * r * np.nan_to_num(enc[:, 0] + enc[:, 1])
+    """r (w_L + w_R)/2 per step [m/s] (NaN where an encoder sample is NaN)."""
+    return 0.5 * r * (enc[:, 0] + enc[:, 1])
 
 
 def fit_icr_correction(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt: float, window: float = 2.0
@@ -1322,7 +1326,8 @@ class _CalibrationRun(NamedTuple):
 
 def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0,
                       windows: Sequence[float] = (2.0, 4.0, 8.0, 16.0), max_iterations: int = 8, tol: float = 0.05
-                      ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, TractionSlip | None, dict[str, Any]]:
+                      ) -> tuple[EkfParams, GaussMarkov, GaussMarkov | None, TractionSlip | None,
+                                 IcrCorrection | None, dict[str, Any]]:
     """Noise of the consistent configuration identified on calibration runs with the reference sensor
     (never the truth, never a scored run).
 
@@ -1340,7 +1345,8 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
        (:func:`reference_velocity_noise_mean_var`) and, with quantisation states, the encoder quantisation
        u_k - u_(k-1) (variance 2 enc_quant^2 / W^2 for a W-sample mean: it telescopes).  The white part is floored
        at a physical bound: v_x row :func:`encoder_white_floor` (without quantisation states; with them the
-       quantisation is the states'), v_y row RMS |S(gamma)| x gyro_noise.  Steps with the wheels at rest
+       quantisation is the states'), v_y row gyro_noise x the RMS of the row's gain from the yaw rate (S(gamma),
+       plus :meth:`IcrCorrection.gyro_gain` with the S correction) on the moving steps.  Steps with the wheels at rest
        (r|w| < min_wheel_speed) count as zero error (the row is exact at standstill: both sides 0).  Repeated until
        sigma and tau of every row change by less than ``tol`` (relative) between passes, at most
        ``max_iterations`` passes (with slip feedback (13)-(14) the fused row depends on the filter's own velocity);
@@ -1349,9 +1355,14 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     0. With ``model.traction_slip`` (slip as a state only): the traction slip of the v_x row (:class:`TractionSlip`)
        is fitted first (:func:`fit_traction_slip`, no-slip row r (w_L + w_R)/2 minus the reference v_x on the
        moving steps after ``settle``) and subtracted from the row in step 2 (``vx_offset``), so that the
-       Gauss-Markov state carries only the rest of the row's error.
+       Gauss-Markov state carries only the rest of the row's error.  With ``model.icr_correction`` (scheme 3, slip
+       state): pass 0 fuses the uncorrected v_y row (15); the S correction (:class:`IcrCorrection`) is fitted on its
+       residual against the reference on the moving steps (:func:`fit_icr_correction`; the row (15) with the slip
+       as a state depends on the encoders and the gyro only) and subtracted from it before that pass's Gauss-Markov
+       fit and from the row in later passes (``vy_offset``).
     sigma_vz (11) is the paper's (the reference is planar: no v_z reference).
-    Returns (params, gm_x, gm_y (scheme 3, else None), traction (None without ``model.traction_slip``), info)."""
+    Returns (params, gm_x, gm_y (scheme 3, else None), traction (None without ``model.traction_slip``), icr (None
+    without ``model.icr_correction``), info)."""
     if not runs:
         raise ValueError(f"{model.name}: identify_yi_noise needs at least one calibration run")
     if max_iterations < 1:
@@ -1389,10 +1400,10 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     traction = None
     if getattr(model, "traction_slip", False):
         res_t = [np.where(_moving(c.enc, c.r, model.params.min_wheel_speed) & (c.t >= c.t[0] + settle)
-                          & np.isfinite(c.vx), 0.5 * c.r * (c.enc[:, 0] + c.enc[:, 1]) - c.vx, np.nan) for c in cal]
+                          & np.isfinite(c.vx), _no_slip_speed(c.enc, c.r) - c.vx, np.nan) for c in cal]
         traction, fit_info = fit_traction_slip(res_t, [traction_features(c.acc, c.gyr) for c in cal], dt)
         info["traction"] = {**asdict(traction), **fit_info}
-    offsets = [_traction_offset(traction, c.acc, c.gyr, c.enc, c.r, model.params) for c in cal]
+    offsets = [_row_offsets(traction, None, c.acc, c.gyr, c.enc, c.r, model.params)[0] for c in cal]
 
     def known_x(w: int) -> float:  # reference noise + quantisation (u_k - u_(k-1): its W-mean telescopes)
         return float(np.mean([c.ref_noise(w) + 2.0 * c.opts["enc_quant"] * c.opts["enc_quant"] / (w * w) for c in cal]))
@@ -1421,18 +1432,18 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                 res_y.append(np.where(c.mask, np.where(c.moving, y_y - c.vy, 0.0), np.nan))
                 s_runs.append(fr.s_icr)
         if want_icr and icr is None:  # pass 0 fused the uncorrected row (15): fit the S correction on its residual
-            feats = [icr_features(c.enc, c.gyr, c.r) for c in cal]
+            feats = [icr_features(c.gyr, c.enc, c.r) for c in cal]
             icr, icr_info = fit_icr_correction([np.where(c.moving, e, np.nan) for c, e in zip(cal, res_y)], feats, dt)
             info["icr"] = {**asdict(icr), **icr_info}
-            offsets_y = [_icr_offset(icr, c.gyr, c.enc, c.r, model.params) for c in cal]
+            offsets_y = [_row_offsets(None, icr, c.acc, c.gyr, c.enc, c.r, model.params)[1] for c in cal]
             res_y = [e - o for e, o in zip(res_y, offsets_y)]  # the row the next passes fuse (its S is not filtered)
 
         new_x = gauss_markov_fit(res_x, dt, windows, known_x, floor_x if not model.quantisation_states else 0.0)
         new_y = None
-        if model.variant == 3:  # the gyro's white noise through (15): RMS of the S the row uses x gyro_noise
-            s_eff = [np.where(c.moving, s_ + (icr.delta_s(c.enc, c.gyr, c.r) if icr else 0.0), np.nan)
-                     for c, s_ in zip(cal, s_runs)]
-            floor_y = float(np.sqrt(np.nanmean(np.concatenate(s_eff) ** 2))) * params.gyro_noise
+        if model.variant == 3:  # the gyro's white noise through the row: RMS of its gain d y_y / d w_z x gyro_noise
+            gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, c.enc, c.r) if icr else 0.0), np.nan)
+                    for c, s_ in zip(cal, s_runs)]
+            floor_y = float(np.sqrt(np.nanmean(np.concatenate(gain) ** 2))) * params.gyro_noise
             info["vy_white_floor"] = floor_y
             new_y = gauss_markov_fit(res_y, dt, windows, known_y, floor_y)
         change = max(_rel_change(new_x, gm_x), _rel_change(new_y, gm_y))
@@ -1451,16 +1462,12 @@ def _moving(enc: np.ndarray, r: float, min_wheel_speed: float) -> np.ndarray:
     return r * np.abs(np.nan_to_num(enc)).max(axis=1) >= min_wheel_speed
 
 
-def _traction_offset(traction: TractionSlip | None, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, r: float,
-                     params: EkfParams) -> np.ndarray | None:
-    """``vx_offset`` of :func:`run_filter_gm` for ``traction`` (None without one)."""
-    return None if traction is None else traction.offset(acc, gyr, _moving(enc, r, params.min_wheel_speed))
-
-
-def _icr_offset(icr: IcrCorrection | None, gyr: np.ndarray, enc: np.ndarray, r: float, params: EkfParams
-                ) -> np.ndarray | None:
-    """``vy_offset`` of :func:`run_filter_gm` for ``icr`` (None without one)."""
-    return None if icr is None else icr.offset(enc, gyr, r, _moving(enc, r, params.min_wheel_speed))
+def _row_offsets(traction: TractionSlip | None, icr: IcrCorrection | None, acc: np.ndarray, gyr: np.ndarray,
+                 enc: np.ndarray, r: float, params: EkfParams) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``vx_offset`` and ``vy_offset`` of :func:`run_filter_gm` for ``traction`` and ``icr`` (None without one)."""
+    moving = _moving(enc, r, params.min_wheel_speed)
+    return (None if traction is None else traction.offset(acc, gyr, moving),
+            None if icr is None else icr.offset(gyr, enc, r, moving))
 
 
 def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params: EkfParams,
@@ -1555,6 +1562,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         if self.traction_slip and self.slip_rows != "state":
             raise ValueError(f"{self.name}: traction_slip needs slip_rows='state' (got {self.slip_rows!r}): with the "
                              "fed-back slip (13)-(14) the row already carries the filter's slip estimate")
+        if self.icr is not None and (self.variant != 3 or not self.icr_correction):
+            raise ValueError(f"{self.name}: icr = {self.icr!r} needs scheme 3 and icr_correction=True")
         if self.icr_correction and self.variant == 3 and self.slip_rows != "state":
             raise ValueError(f"{self.name}: icr_correction needs slip_rows='state' (got {self.slip_rows!r}): with the "
                              "fed-back slip (13)-(14) gamma (40) of the row depends on the filter's own estimate")
@@ -1573,16 +1582,19 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         r, track = _geometry(run)
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
+        vx_offset, vy_offset = _row_offsets(self.traction, self.icr, acc, gyr, enc, r, self.params)
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
                                      gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
-                                     vx_offset=_traction_offset(self.traction, acc, gyr, enc, r, self.params),
-                                     vy_offset=_icr_offset(self.icr, gyr, enc, r, self.params),
+                                     vx_offset=vx_offset, vy_offset=vy_offset,
                                      store_lin=self.store_linearisation, **self.filter_options(run))
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:
             cols["b_y"] = bias[:, 1]
+            if self.icr is not None:  # the S the corrected row (15) uses: S(gamma) + the correction while moving
+                moving = _moving(enc, r, self.params.min_wheel_speed)
+                cols["x_icr"] = np.where(moving, res.s_icr + np.nan_to_num(self.icr.delta_s(gyr, enc, r)), res.s_icr)
         info.update(
             configuration="consistent (not the paper's)", gm_x=asdict(self.gm_x),
             traction=asdict(self.traction) if self.traction else None,

@@ -1224,9 +1224,11 @@ def nees(ctx: Any) -> dict[str, float]:
             txt += (f"; most across the heading in {name(across3)} (mean |yaw rate| "
                     + ", ".join(f"{out[f'{k}.abs_yaw_rate']:.2g} rad/s ({k})" for k, _ in across3)
                     + "): "
-                    + ("the v_y row (15) error left after the S correction (Gauss-Markov sigma "
-                       f"{out['noise.v3.vy.sigma']:.3g} m/s, identified against the vision reference on the calibration "
-                       "runs, whose commands change in steps) over-covers these paths' error"
+                    + ("the Gauss-Markov state of the v_y row (15) error left after the S correction (sigma "
+                       f"{out['noise.v3.vy.sigma']:.3g} m/s, tau {out['noise.v3.vy.tau']:.3g} s, identified against "
+                       "the vision reference on the calibration runs) claims "
+                       + ", ".join(f"{out[f'{k}.consistent.v{v}.sd_across']:.3g} m/s against an error of "
+                                   f"{out[f'{k}.consistent.v{v}.err_across']:.3g} ({k})" for k, v in across3)
                        if "noise.v3.icr.c_0" in out else
                        "the v_y row (15) error is the S(gamma) error times the yaw rate, ~0 where the robot does not "
                        "turn, but its Gauss-Markov state is stationary and keeps the lateral covariance wide")
