@@ -1443,7 +1443,9 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
         if model.variant == 3:  # the gyro's white noise through the row: RMS of its gain d y_y / d w_z x gyro_noise
             gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, c.enc, c.r) if icr else 0.0), np.nan)
                     for c, s_ in zip(cal, s_runs)]
-            floor_y = float(np.sqrt(np.nanmean(np.concatenate(gain) ** 2))) * params.gyro_noise
+            gain_all = np.concatenate(gain)  # (no moving step: no floor)
+            floor_y = (float(np.sqrt(np.nanmean(gain_all**2))) * params.gyro_noise
+                       if np.isfinite(gain_all).any() else 0.0)
             info["vy_white_floor"] = floor_y
             new_y = gauss_markov_fit(res_y, dt, windows, known_y, floor_y)
         change = max(_rel_change(new_x, gm_x), _rel_change(new_y, gm_y))
