@@ -1322,6 +1322,8 @@ class _CalibrationRun(NamedTuple):
     mask: np.ndarray  # encoders finite, after the settle time, inside the reference
     moving: np.ndarray  # mask and a wheel turning
     opts: dict[str, Any]  # the model's run_filter_gm options
+    x0: np.ndarray  # initial state and covariance of the consistent filter (_initial_state_consistent)
+    p0: np.ndarray
 
 
 def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1.0,
@@ -1393,14 +1395,15 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
         vx, vy, _ = reference_body_velocity(run, t)
         dt_run = float(np.median(np.diff(t)))
         m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
+        x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
         cal.append(_CalibrationRun(run, r, track, t, acc, gyr, enc, vx, vy, dt_run,
                                    reference_velocity_noise_mean_var(run, dt_run), m,
-                                   m & _moving(enc, r, model.params.min_wheel_speed), model.filter_options(run)))
+                                   m & _moving(enc, r, model.params.min_wheel_speed), model.filter_options(run),
+                                   x0, p0))
     dt = float(np.median([c.dt for c in cal]))
     traction = None
     if getattr(model, "traction_slip", False):
-        res_t = [np.where(_moving(c.enc, c.r, model.params.min_wheel_speed) & (c.t >= c.t[0] + settle)
-                          & np.isfinite(c.vx), _no_slip_speed(c.enc, c.r) - c.vx, np.nan) for c in cal]
+        res_t = [np.where(c.moving, _no_slip_speed(c.enc, c.r) - c.vx, np.nan) for c in cal]
         traction, fit_info = fit_traction_slip(res_t, [traction_features(c.acc, c.gyr) for c in cal], dt)
         info["traction"] = {**asdict(traction), **fit_info}
     offsets = [_row_offsets(traction, None, c.acc, c.gyr, c.enc, c.r, model.params)[0] for c in cal]
@@ -1420,11 +1423,9 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
         res_y: list[np.ndarray] = []
         s_runs: list[np.ndarray] = []  # S(gamma) of (15) per run (scheme 3)
         for i, (c, off) in enumerate(zip(cal, offsets)):
-            x0, p0 = _initial_state_consistent(c.acc, c.enc, c.r, params, model.initial_pose,
-                                               model.params.p0_rollpitch)
             fr, _, fused = run_filter_gm(c.t, c.acc, c.gyr, c.enc, wheel_radius=c.r, track=c.track,
-                                         variant=model.variant, s_gamma=model.s_gamma, params=params, x0=x0, p0=p0,
-                                         gm_x=gm_x, gm_y=gm_y, where=c.run.where, vx_offset=off,
+                                         variant=model.variant, s_gamma=model.s_gamma, params=params, x0=c.x0,
+                                         p0=c.p0, gm_x=gm_x, gm_y=gm_y, where=c.run.where, vx_offset=off,
                                          vy_offset=offsets_y[i], **c.opts)
             y_x, y_y = fused[:, 0], fused[:, 1]
             res_x.append(np.where(c.mask & np.isfinite(y_x), np.where(c.moving, y_x - c.vx, 0.0), np.nan))
