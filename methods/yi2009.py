@@ -150,6 +150,7 @@ from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 
 import numpy as np
+import pandas as pd
 from numpy.typing import ArrayLike
 from scipy.linalg import lapack
 from scipy.optimize import least_squares
@@ -625,10 +626,16 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     filter's derivative coefficients c_k and ``meta.platform.sensors.reference.pos_noise`` (0 if absent)."""
     d = run.data
     ok, h, win, coef = _reference_derivative(run, window, polyorder)
-    tr = run.t[ok]
+    vx, vy = _savgol_body_velocity(run.t[ok], d["ref_x"].to_numpy()[ok], d["ref_y"].to_numpy()[ok],
+                                   np.unwrap(d["ref_yaw"].to_numpy()[ok]), t, h, win, coef, polyorder)
+    return vx, vy, reference_position_noise(run) ** 2 * float(np.sum(coef**2))
+
+
+def _savgol_body_velocity(tr: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray, t: np.ndarray, h: float,
+                          win: int, coef: np.ndarray, polyorder: int) -> tuple[np.ndarray, np.ndarray]:
+    """The operator of :func:`reference_body_velocity` on a pose (x, y, unwrapped yaw) sampled at ``tr``."""
     tg = np.arange(tr[0], tr[-1] + 0.5 * h, h)
-    xs, ys, yaws = (np.interp(tg, tr, v) for v in (d["ref_x"].to_numpy()[ok], d["ref_y"].to_numpy()[ok],
-                                                  np.unwrap(d["ref_yaw"].to_numpy()[ok])))
+    xs, ys, yaws = (np.interp(tg, tr, v) for v in (x, y, yaw))
     kw = dict(window_length=win, polyorder=polyorder, delta=h, mode="interp")
     xd, yd = savgol_filter(xs, deriv=1, **kw), savgol_filter(ys, deriv=1, **kw)
     psi = savgol_filter(yaws, deriv=0, **kw)
@@ -640,27 +647,80 @@ def reference_body_velocity(run: Run, t: np.ndarray, window: float = 1.0, polyor
     gain = (np.sin(np.outer(w, tk)) @ coef) / w
     c, s = np.cos(psi), np.sin(psi)
     vx, vy = (c * xd + s * yd) / gain, (-s * xd + c * yd) / gain
-    var = reference_position_noise(run) ** 2 * float(np.sum(coef**2))
     inside = (t >= tg[0]) & (t <= tg[-1])
-    return (np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan), var)
+    return np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan)
 
 
-def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, polyorder: int = 2
-                                      ) -> Callable[[int], float]:
+REFERENCE_BIAS_SMOOTHING = 0.1  # [s] moving mean of the encoder speed in reference_smoothing_bias
+
+
+def reference_smoothing_bias(run: Run, t: np.ndarray, gyr: np.ndarray, enc: np.ndarray, r: float,
+                             window: float = 1.0, polyorder: int = 2,
+                             smoothing: float = REFERENCE_BIAS_SMOOTHING) -> tuple[np.ndarray, np.ndarray]:
+    """Smoothing error (v_x, v_y) [m/s] of :func:`reference_body_velocity` at times ``t``, predicted from the
+    robot's inner sensors (not Yi's): the reference's Savitzky-Golay derivative is exact only where the position is
+    locally a polynomial of ``polyorder`` over ``window`` s, so at a change of the commanded speed or turn it
+    returns a smoothed velocity (measured on the step calibration run against the testbed truth: 0.023 m/s RMS
+    along the heading where the position noise accounts for 0.009).  The same operator is applied to the pose
+    dead-reckoned from the gyro (yaw) and the encoders' no-slip speed (a ``smoothing``-s moving mean, no lateral
+    velocity), sampled at the reference's times; its output minus the dead-reckoned body velocity is the
+    operator's error on that motion, which differs from the error on the true motion only by the operator's
+    error on the slip velocities (slower and smaller).  NaN encoder samples are interpolated over; no finite
+    speed: zeros."""
+    from scipy.ndimage import uniform_filter1d
+
+    ok, h, win, coef = _reference_derivative(run, window, polyorder)
+    v = _no_slip_speed(enc, r)
+    fin = np.isfinite(v)
+    if not fin.any():
+        return np.zeros(t.size), np.zeros(t.size)
+    v = np.interp(t, t[fin], v[fin])
+    n = max(1, int(round(smoothing / float(np.median(np.diff(t)))))) if t.size > 1 else 1
+    v = uniform_filter1d(v, n, mode="nearest")
+    dt = np.diff(t)
+    wz = np.nan_to_num(gyr[:, 2])
+    yaw = np.concatenate(([0.0], np.cumsum(0.5 * (wz[:-1] + wz[1:]) * dt)))
+    vxi, vyi = v * np.cos(yaw), v * np.sin(yaw)
+    x = np.concatenate(([0.0], np.cumsum(0.5 * (vxi[:-1] + vxi[1:]) * dt)))
+    y = np.concatenate(([0.0], np.cumsum(0.5 * (vyi[:-1] + vyi[1:]) * dt)))
+    tr = run.t[ok]
+    bx, by = _savgol_body_velocity(tr, np.interp(tr, t, x), np.interp(tr, t, y), np.interp(tr, t, yaw), t, h, win,
+                                   coef, polyorder)
+    return bx - v, by
+
+
+def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, polyorder: int = 2,
+                                      speed_ms: float = 0.0) -> Callable[[int], float]:
     """Variance of the W-sample mean (filter grid ``dt``) of the noise of :func:`reference_body_velocity` per axis:
     the Savitzky-Golay derivative of white position noise (``reference_position_noise``) has the autocovariance
     pos_noise^2 sum_k c_k c_(k+m) at m reference samples (zero beyond the window), interpolated to the filter's
-    lags; returns W -> (1/W^2) sum_i sum_j acov(|i - j| dt)."""
+    lags; returns W -> (1/W^2) sum_i sum_j acov(|i - j| dt).  With ``speed_ms`` > 0 (the mean square forward speed
+    [m^2/s^2], for the lateral axis) it adds the rotation by the smoothed reference yaw: its noise (white yaw noise
+    ``meta.platform.sensors.reference.yaw_noise``, 0 if absent, through the smoothing coefficients d_k) turns the
+    forward speed into a lateral error -v_x dpsi, autocovariance speed_ms yaw_noise^2 sum_k d_k d_(k+m)."""
     _, h, win, coef = _reference_derivative(run, window, polyorder)
-    ac_ref = np.array([float(coef[:win - m] @ coef[m:]) for m in range(win)] + [0.0])
-    s2 = reference_position_noise(run) ** 2
+    ac_ref = _coef_autocovariance(coef) * reference_position_noise(run) ** 2
+    if speed_ms > 0:
+        from scipy.signal import savgol_coeffs
+
+        ref = run.meta.get("platform", {}).get("sensors", {}).get("reference", {})
+        yaw_noise = ref.get("yaw_noise", 0.0) if isinstance(ref, Mapping) else 0.0
+        yaw_noise = float(yaw_noise) if isinstance(yaw_noise, (int, float)) and math.isfinite(yaw_noise) else 0.0
+        ac_ref = ac_ref + speed_ms * yaw_noise**2 * _coef_autocovariance(savgol_coeffs(win, polyorder, use="dot"))
 
     def mean_var(w: int) -> float:
         m = np.arange(int(w))
-        ac = s2 * np.interp(m * dt / h, np.arange(win + 1), ac_ref, right=0.0)
+        ac = np.interp(m * dt / h, np.arange(win + 1), ac_ref, right=0.0)
         return float((w * ac[0] + 2.0 * np.sum((w - m[1:]) * ac[1:])) / (w * w))
 
     return mean_var
+
+
+def _coef_autocovariance(coef: np.ndarray) -> np.ndarray:
+    """sum_k c_k c_(k+m) for m = 0 .. len(coef) (the last 0): the autocovariance of a filter's output on unit white
+    noise, per sample lag."""
+    win = coef.size
+    return np.array([float(coef[:win - m] @ coef[m:]) for m in range(win)] + [0.0])
 
 
 @dataclass(frozen=True)
@@ -892,6 +952,16 @@ def _no_slip_speed(enc: np.ndarray, r: float) -> np.ndarray:
     return 0.5 * r * (enc[:, 0] + enc[:, 1])
 
 
+def trailing_mean(enc: np.ndarray, t: np.ndarray, seconds: float) -> np.ndarray:
+    """(n, 2) trailing (causal) mean of the encoder speeds over the last ``seconds`` s of samples (NaN samples
+    skipped; NaN until a finite one).  A wheel speed is a count difference over one sample, so its quantisation
+    error telescopes in the mean: over N samples it is (u_N - u_0)/N (see :func:`encoder_quantisation`)."""
+    n_win = max(1, int(round(seconds / float(np.median(np.diff(t)))))) if t.size > 1 and seconds > 0 else 1
+    if n_win == 1:
+        return np.array(enc, float, copy=True)
+    return pd.DataFrame(enc).rolling(n_win, min_periods=1).mean().to_numpy()
+
+
 def fit_icr_correction(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt: float, window: float = 2.0
                        ) -> tuple[IcrCorrection, dict[str, float]]:
     """:class:`IcrCorrection` fitted to v_y row residuals ((15) minus reference v_y) by :func:`fit_row_offset` on
@@ -908,7 +978,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                   track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray, p0: np.ndarray,
                   gm_x: GaussMarkov | None, gm_y: GaussMarkov | None = None, store_cov: bool = False, where: str = "run",
                   slip_rows: str = "feedback", roll_model_jacobian: bool = False, enc_quant: float = 0.0,
-                  vx_offset: np.ndarray | None = None, store_lin: bool = False, vy_offset: np.ndarray | None = None
+                  vx_offset: np.ndarray | None = None, store_lin: bool = False, vy_offset: np.ndarray | None = None,
+                  imu_mean: bool = False, enc_gamma: np.ndarray | None = None
                   ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
 
@@ -947,6 +1018,15 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     row, y_x = r (w_L + w_R)/2 - vx_offset(k) (the traction slip of :class:`TractionSlip`); b_x is then the rest.
     ``vy_offset`` (n,) [m/s] (scheme 3): a known part of the v_y row's error subtracted from the row,
     y_y = -S(gamma) psi_dot - vy_offset(k) (the S correction of :class:`IcrCorrection`); b_y is then the rest.
+    ``imu_mean``: the prediction from step k-1 to k uses the mean of the IMU samples k-1 and k (the trapezoidal
+    rule for the strapdown integral of (10)) instead of sample k-1 alone (Yi's (26a), forward Euler).  The IMU
+    samples the rates at instants; held over the step, a sample lags the rate's mean over it by half a sample,
+    which on a turn at w leaves the heading w dT/2 behind for as long as the turn lasts (4 mrad at 1 rad/s and
+    125 Hz) and rotates the fused body velocities by it: an error that no noise term of the filter represents.
+    The process noise is unchanged (the sum of the means of consecutive white samples is the same random walk).
+    ``enc_gamma`` (n, 2) [rad/s] (scheme 3, ``slip_rows="state"``): the wheel speeds from which gamma (40) and
+    S(gamma) (41) of the v_y row are computed, instead of the step's encoder pair (:func:`trailing_mean` of the
+    encoders in :class:`Yi2009EkfConsistent`); the other rows use the step's pair.
     ``store_lin``: also return the filter's linearised error recursion (``FilterResult.lin``, a
     :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q (I - K H)^T + K R K^T, P_k) for
     the null distribution of the NEES test (not with quantisation states).
@@ -975,6 +1055,12 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             raise ValueError(f"run_filter_gm: vy_offset needs scheme 3 (got {variant}) and {n} finite values (got "
                              f"shape {vy_offset.shape}, {int(np.sum(~np.isfinite(vy_offset)))} non-finite)")
     offy_l = vy_offset.tolist() if vy_offset is not None else None
+    if enc_gamma is not None:
+        enc_gamma = np.asarray(enc_gamma, float)
+        if variant != 3 or slip_rows != "state" or enc_gamma.shape != (n, 2):
+            raise ValueError(f"run_filter_gm: enc_gamma needs scheme 3 (got {variant}), slip_rows='state' (got "
+                             f"{slip_rows!r}) and shape ({n}, 2) (got {enc_gamma.shape})")
+    encg_l = enc_gamma.tolist() if enc_gamma is not None else None
     if store_lin and enc_quant > 0:
         raise ValueError("run_filter_gm: store_lin is not available with quantisation states (enc_quant > 0)")
     lin_a: list[np.ndarray] = []
@@ -1002,6 +1088,11 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
               for rows in ((0, 1, 2), (0, 2), (1, 2), (2,))}
 
     t_l, acc_l, gyr_l, enc_l = t.tolist(), acc.tolist(), gyr.tolist(), enc.tolist()
+    if imu_mean and n > 1:  # the input of the step k-1 -> k: mean of samples k-1 and k
+        accp_l = np.vstack((0.5 * (acc[:-1] + acc[1:]), acc[-1:])).tolist()
+        gyrp_l = np.vstack((0.5 * (gyr[:-1] + gyr[1:]), gyr[-1:])).tolist()
+    else:
+        accp_l, gyrp_l = acc_l, gyr_l
     enc_ok = np.isfinite(enc).all(axis=1).tolist()
     out: list[tuple[float, ...]] = []
     covs: list[np.ndarray] = []
@@ -1037,8 +1128,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     s_cur = math.nan
     if enc_ok[0]:
         w_l, w_r = enc_l[0]
-        den = r * (w_l + w_r)
-        s_cur = a1 / (a2 * abs(r * (w_l - w_r) / den) + a3) if abs(den) > 1e-9 else 0.0
+        g_l, g_r = encg_l[0] if encg_l is not None else (w_l, w_r)
+        den = r * (g_l + g_r)
+        s_cur = a1 / (a2 * abs(r * (g_l - g_r) / den) + a3) if abs(den) > 1e-9 else 0.0
     nxu = nyu = nzu = 0
     slip_state = slip_rows == "state"
     two_pi = 2.0 * math.pi
@@ -1050,11 +1142,11 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         row_k = (math.nan, math.nan)
         x_fused = False
         if k > 0:
-            # ---------------- prediction (26a)-(26b) with u(k-1), from X(k-1|k-1) -------
+            # ---------------- prediction (26a)-(26b) with u(k-1) (imu_mean: mean of u(k-1), u(k)), from X(k-1|k-1) -------
             # (sf..cp, c11..c33 hold the trigonometry/DCM (2) of the posterior of step k-1)
             dt = t_l[k] - t_l[k - 1]
-            ax, ay, az = acc_l[k - 1]
-            ux, uy, uz = gyr_l[k - 1]
+            ax, ay, az = accp_l[k - 1]
+            ux, uy, uz = gyrp_l[k - 1]
             vdx = c11 * ax + c12 * ay + c13 * az  # eq. (10b): C A_B + G
             vdy = c21 * ax + c22 * ay + c23 * az
             c3a = c31 * ax + c32 * ay + c33 * az
@@ -1115,7 +1207,10 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 if off_l is not None:
                     y_x -= off_l[k]
                 if use_vy:
-                    v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
+                    if encg_l is not None:  # (40) from the smoothed speeds (slip state: pl = pr = 0)
+                        v_lx, v_rx = r * encg_l[k][0], r * encg_l[k][1]
+                    else:
+                        v_lx, v_rx = (1.0 - pl) * r * w_l, (1.0 - pr) * r * w_r
                     den = v_lx + v_rx
                     s_cur = a1 / (a2 * abs((v_lx - v_rx) / den) + a3) if abs(den) > 1e-9 else 0.0  # (40), (41)
                     y_y = -s_cur * (sf * gy + cf * gz) / ct  # eq. (15), x_M = 0, yaw rate (10e)
@@ -1318,7 +1413,8 @@ class _CalibrationRun(NamedTuple):
     vx: np.ndarray  # reference body velocity on the filter grid
     vy: np.ndarray
     dt: float
-    ref_noise: Callable[[int], float]  # reference_velocity_noise_mean_var
+    ref_noise: Callable[[int], float]  # reference_velocity_noise_mean_var (v_x)
+    ref_noise_y: Callable[[int], float]  # reference_velocity_noise_mean_var with the yaw rotation (v_y)
     mask: np.ndarray  # encoders finite, after the settle time, inside the reference
     moving: np.ndarray  # mask and a wheel turning
     opts: dict[str, Any]  # the model's run_filter_gm options
@@ -1341,7 +1437,9 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     2. The v_x (13) and, for scheme 3, v_y (15) pseudo-measurement errors as white + Gauss-Markov
        (:func:`gauss_markov_fit`, moving-mean variances over ``windows`` s): the augmented filter
        (:func:`run_filter_gm`, with the model's :meth:`Yi2009EkfConsistent.filter_options`) is run on each run and
-       the rows it fused are compared with the reference body velocity (:func:`reference_body_velocity`) on the
+       the rows it fused are compared with the reference body velocity (:func:`reference_body_velocity`, its
+       smoothing error at speed and turn changes predicted from the gyro and encoders and removed,
+       :func:`reference_smoothing_bias`; ``info["reference_bias_rms"]``: RMS of that correction (v_x, v_y)) on the
        filter's time grid; steps without a fused row, before ``settle`` s or outside the reference are NaN.  The
        known parts of the residual are subtracted at every window: the reference derivative's noise
        (:func:`reference_velocity_noise_mean_var`) and, with quantisation states, the encoder quantisation
@@ -1388,19 +1486,25 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                             "imu_noise_source": "rest" if imu is not None else "paper default",
                             "vx_white_floor": floor_x, "vx_white_floor_source": floor_src}
     # everything that does not depend on the filter's pass, once per run: inputs, reference body velocity, its noise
-    cal = []
+    cal, ref_bias = [], []
     for run in runs:
         r, track = _geometry(run)
         t, acc, gyr, enc = align_inputs(run)
         vx, vy, _ = reference_body_velocity(run, t)
+        bx, by = reference_smoothing_bias(run, t, gyr, enc, r)
+        vx, vy = vx - bx, vy - by
+        ref_bias.append(np.column_stack((bx, by))[np.isfinite(vx)])
         dt_run = float(np.median(np.diff(t)))
         m = np.isfinite(enc).all(axis=1) & (t >= t[0] + settle) & np.isfinite(vx)
         x0, p0 = _initial_state_consistent(acc, enc, r, params, model.initial_pose, model.params.p0_rollpitch)
+        speed_ms = float(np.mean(np.square(_no_slip_speed(enc, r)[m]))) if m.any() else 0.0
         cal.append(_CalibrationRun(run, r, track, t, acc, gyr, enc, vx, vy, dt_run,
-                                   reference_velocity_noise_mean_var(run, dt_run), m,
+                                   reference_velocity_noise_mean_var(run, dt_run),
+                                   reference_velocity_noise_mean_var(run, dt_run, speed_ms=speed_ms), m,
                                    m & _moving(enc, r, model.params.min_wheel_speed), model.filter_options(run),
                                    x0, p0))
     dt = float(np.median([c.dt for c in cal]))
+    info["reference_bias_rms"] = np.sqrt(np.mean(np.square(np.vstack(ref_bias)), axis=0)).tolist()
     traction = None
     if getattr(model, "traction_slip", False):
         res_t = [np.where(c.moving, _no_slip_speed(c.enc, c.r) - c.vx, np.nan) for c in cal]
@@ -1412,7 +1516,7 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
         return float(np.mean([c.ref_noise(w) + 2.0 * c.opts["enc_quant"] * c.opts["enc_quant"] / (w * w) for c in cal]))
 
     def known_y(w: int) -> float:  # reference noise
-        return float(np.mean([c.ref_noise(w) for c in cal]))
+        return float(np.mean([c.ref_noise_y(w) for c in cal]))
 
     want_icr = model.variant == 3 and bool(getattr(model, "icr_correction", False))
     icr: IcrCorrection | None = None
@@ -1433,16 +1537,17 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                 res_y.append(np.where(c.mask, np.where(c.moving, y_y - c.vy, 0.0), np.nan))
                 s_runs.append(fr.s_icr)
         if want_icr and icr is None:  # pass 0 fused the uncorrected row (15): fit the S correction on its residual
-            feats = [icr_features(c.gyr, c.enc, c.r) for c in cal]
+            feats = [icr_features(c.gyr, _enc_gamma(c), c.r) for c in cal]
             icr, icr_info = fit_icr_correction([np.where(c.moving, e, np.nan) for c, e in zip(cal, res_y)], feats, dt)
             info["icr"] = {**asdict(icr), **icr_info}
-            offsets_y = [_row_offsets(None, icr, c.acc, c.gyr, c.enc, c.r, model.params)[1] for c in cal]
+            offsets_y = [_row_offsets(None, icr, c.acc, c.gyr, c.enc, c.r, model.params, _enc_gamma(c))[1]
+                         for c in cal]
             res_y = [e - o for e, o in zip(res_y, offsets_y)]  # the row the next passes fuse (its S is not filtered)
 
         new_x = gauss_markov_fit(res_x, dt, windows, known_x, floor_x if not model.quantisation_states else 0.0)
         new_y = None
         if model.variant == 3:  # the gyro's white noise through the row: RMS of its gain d y_y / d w_z x gyro_noise
-            gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, c.enc, c.r) if icr else 0.0), np.nan)
+            gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, _enc_gamma(c), c.r) if icr else 0.0), np.nan)
                     for c, s_ in zip(cal, s_runs)]
             gain_all = np.concatenate(gain)  # (no moving step: no floor)
             floor_y = (float(np.sqrt(np.nanmean(gain_all**2))) * params.gyro_noise
@@ -1460,17 +1565,27 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     return params, gm_x, gm_y, traction, icr, info
 
 
+def _enc_gamma(c: _CalibrationRun) -> np.ndarray:
+    """The wheel speeds of gamma (40) and the S correction on a calibration run (its filter options' enc_gamma,
+    else its encoders)."""
+    g = c.opts.get("enc_gamma")
+    return c.enc if g is None else g
+
+
 def _moving(enc: np.ndarray, r: float, min_wheel_speed: float) -> np.ndarray:
     """Steps with a wheel turning (r |w| >= ``min_wheel_speed`` on either side; NaN counts as at rest)."""
     return r * np.abs(np.nan_to_num(enc)).max(axis=1) >= min_wheel_speed
 
 
 def _row_offsets(traction: TractionSlip | None, icr: IcrCorrection | None, acc: np.ndarray, gyr: np.ndarray,
-                 enc: np.ndarray, r: float, params: EkfParams) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """``vx_offset`` and ``vy_offset`` of :func:`run_filter_gm` for ``traction`` and ``icr`` (None without one)."""
+                 enc: np.ndarray, r: float, params: EkfParams, enc_gamma: np.ndarray | None = None
+                 ) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """``vx_offset`` and ``vy_offset`` of :func:`run_filter_gm` for ``traction`` and ``icr`` (None without one); the
+    S correction's speed from ``enc_gamma`` (the wheel speeds of gamma, :meth:`Yi2009EkfConsistent.gamma_speeds`;
+    None: ``enc``)."""
     moving = _moving(enc, r, params.min_wheel_speed)
     return (None if traction is None else traction.offset(acc, gyr, moving),
-            None if icr is None else icr.offset(gyr, enc, r, moving))
+            None if icr is None else icr.offset(gyr, enc if enc_gamma is None else enc_gamma, r, moving))
 
 
 def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params: EkfParams,
@@ -1522,6 +1637,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       mean: calibration-run NEES 11);
     * ``roll_model_jacobian`` (schemes 1-2): the v_z row's roll column at the modelled v_By = 0, so that roll does not
       become spuriously observable through a drifted v_By estimate;
+    * ``imu_mean``: the strapdown prediction integrates the IMU by the trapezoidal rule (mean of consecutive samples,
+      :func:`run_filter_gm`) instead of holding each sample over the next step, which leaves the heading w dT/2
+      behind in every turn;
     * the IMU white noise (Q) and the levelled roll/pitch precision (P0) are identified from the rest at
       the start of the calibration runs (:func:`static_imu_noise`; the model's values when no run starts at
       rest); that P0 is used only on runs that start at rest (static levelling, :func:`at_rest_start`), otherwise
@@ -1539,6 +1657,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     unlevelled_p0_rollpitch: float = EkfParams().p0_rollpitch  # [rad] roll/pitch P0 on runs that start moving
     slip_rows: str = "state"  # run_filter_gm: "state" (slip as the b_x state) or Yi's "feedback"
     roll_model_jacobian: bool = True  # run_filter_gm (schemes 1-2)
+    imu_mean: bool = True  # run_filter_gm: trapezoidal strapdown integration (mean of IMU samples k-1, k)
+    gamma_smoothing: float = 0.1  # [s] scheme 3: trailing mean of the encoder speeds in gamma (40) and the S correction
     quantisation_states: bool = False  # the v_x row's encoder quantisation as states (run_filter_gm enc_quant)
     traction_slip: bool = True  # the v_x row's traction slip (TractionSlip) identified and subtracted (slip state only)
     traction: TractionSlip | None = None
@@ -1556,9 +1676,22 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         return frozenset(REF_CHANNELS)
 
     def filter_options(self, run: Run) -> dict[str, Any]:
-        """The run_filter_gm options of this configuration for ``run`` (the quantisation std from its encoder spec)."""
+        """The run_filter_gm options of this configuration for ``run`` (the quantisation std from its encoder spec,
+        the smoothed wheel speeds of gamma (40) from its encoders)."""
         return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
-                "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0}
+                "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0, "imu_mean": self.imu_mean,
+                "enc_gamma": self.gamma_speeds(*align_inputs(run)[::3])}
+
+    def gamma_speeds(self, t: np.ndarray, enc: np.ndarray) -> np.ndarray | None:
+        """The wheel speeds of gamma (40) and of the S correction (scheme 3 with the slip state and
+        ``gamma_smoothing`` > 0: their :func:`trailing_mean`; else None, the step's pair).  Through the convex
+        S(gamma) (41) and the correction's speed, the encoder quantisation (one count per sample is 0.034 m/s at the
+        tread) enters the v_y row as an error that the row's white part (the gyro's) does not cover and, per
+        turn, a bias that depends on the counts' phase; measured on the figure-8 (seed 0, truth, analysis only):
+        heading error RMS 0.0060 rad with 2000 counts/rev against 0.0025 rad with 2,000,000."""
+        if self.variant != 3 or self.slip_rows != "state" or self.gamma_smoothing <= 0:
+            return None
+        return trailing_mean(enc, t, self.gamma_smoothing)
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -1585,19 +1718,21 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         r, track = _geometry(run)
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
-        vx_offset, vy_offset = _row_offsets(self.traction, self.icr, acc, gyr, enc, r, self.params)
+        opts = self.filter_options(run)
+        enc_g = enc if opts["enc_gamma"] is None else opts["enc_gamma"]
+        vx_offset, vy_offset = _row_offsets(self.traction, self.icr, acc, gyr, enc, r, self.params, enc_g)
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
                                      gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
                                      vx_offset=vx_offset, vy_offset=vy_offset,
-                                     store_lin=self.store_linearisation, **self.filter_options(run))
+                                     store_lin=self.store_linearisation, **opts)
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:
             cols["b_y"] = bias[:, 1]
             if self.icr is not None:  # the S the corrected row (15) uses: S(gamma) + the correction while moving
                 moving = _moving(enc, r, self.params.min_wheel_speed)
-                cols["x_icr"] = np.where(moving, res.s_icr + np.nan_to_num(self.icr.delta_s(gyr, enc, r)), res.s_icr)
+                cols["x_icr"] = np.where(moving, res.s_icr + np.nan_to_num(self.icr.delta_s(gyr, enc_g, r)), res.s_icr)
         info.update(
             configuration="consistent (not the paper's)", gm_x=asdict(self.gm_x),
             traction=asdict(self.traction) if self.traction else None,

@@ -69,7 +69,8 @@ Choices (each one stated where the paper is silent or the testbed differs)
   5 s (Yi has no absolute position sensor: position NEES is not meaningful), seed-averaged, against the
   two-sided 95% band chi2(2N)/N; paper configuration = the scored plugins with ``store_covariance``, consistent =
   :class:`methods.yi2009.Yi2009EkfConsistent` (slip as a Gauss-Markov state instead of fed back, Gauss-Markov
-  v_y row error, roll Jacobian at the modelled v_By, IMU noise from the rest at the start; an ablation switches
+  v_y row error, roll Jacobian at the modelled v_By, trapezoidal IMU integration, scheme 3's gamma from a 0.1 s
+  trailing mean of the wheel speeds, IMU noise from the rest at the start; an ablation switches
   each choice in full mode, ``NEES_ABLATIONS``) identified on the dedicated calibration runs
   ``Settings.nees_calibration`` (``scenarios/yi_calib.toml``, gradual command changes, and
   ``scenarios/yi_calib_steps.toml``, step changes; seeds listed there and in nees_consistency.md): same platform and
@@ -785,6 +786,8 @@ NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
     "no_icr_correction": ({"icr_correction": False}, (3,)),
     "quantisation_states": ({"quantisation_states": True}, (1, 2, 3)),
     "roll_at_estimate": ({"roll_model_jacobian": False}, (1, 2)),
+    "imu_forward": ({"imu_mean": False}, (1, 2, 3)),
+    "no_gamma_smoothing": ({"gamma_smoothing": 0.0}, (3,)),
 }
 _NEES_KEY = "_yi2009_nees"
 NULL_DRAWS = {True: 50, False: 400}  # simulated experiments of the NEES null distribution (quick / full)
@@ -1108,7 +1111,10 @@ def nees(ctx: Any) -> dict[str, float]:
                   "instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
                   "v_By (schemes 1-2); no_traction_slip: without the traction slip model (the whole row error in the "
                   "Gauss-Markov state); no_icr_correction: scheme 3 without the S correction of the v_y row (the whole "
-                  "S(gamma) error in the Gauss-Markov state). Reported, not judged.", "",
+                  "S(gamma) error in the Gauss-Markov state); imu_forward: the IMU sample held over the next step "
+                  "(Yi's forward Euler) instead of the trapezoidal rule; no_gamma_smoothing: scheme 3's gamma (40) "
+                  "and S correction from the step's encoder pair instead of their 0.1 s trailing mean. "
+                  "Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
         for c in ["consistent"] + abl:
             for v in VARIANTS:
@@ -1159,7 +1165,9 @@ def nees(ctx: Any) -> dict[str, float]:
     txt = (f"Consistent configuration (slip as the Gauss-Markov error state of the v_x row instead of fed back, so "
            "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; in scheme 3 "
            "the S correction (c_0 + c_1 v |w_z|) w_z subtracted from the v_y row; Gauss-Markov v_y row error; "
-           "roll Jacobian at the modelled v_By in schemes 1-2; "
+           "roll Jacobian at the modelled v_By in schemes 1-2; trapezoidal IMU integration; in scheme 3 gamma (40) "
+           "from a 0.1 s trailing mean of the wheel speeds; the reference's smoothing error at command changes "
+           "removed in the identification; "
            f"noise identified on {calib}), mean velocity NEES of schemes 1/2/3 "
            f"({fmt('consistent')}) against "
            f"[{lo:.2f}, {hi:.2f}]; steps in band {steps('consistent')} (pass: >= {NEES_MIN_STEP_FRACTION:.0%}). "

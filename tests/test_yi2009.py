@@ -64,6 +64,9 @@ from methods.yi2009 import (
     fit_icr_correction,
     icr_features,
     IcrCorrection,
+    reference_smoothing_bias,
+    reference_velocity_noise_mean_var,
+    trailing_mean,
 )
 
 RPM_TO_RADS = 2.0 * math.pi / 60.0
@@ -1153,3 +1156,93 @@ def test_consistent_needs_calibration_and_refuses_its_calibration_runs(consisten
                                                                                  p.p0_rollpitch)
     assert consistent_v2.noise_info["imu_noise_source"] == "rest"
     assert np.isfinite(registry.estimate(m, synthetic_run("circle", 23))["vx"]).all()
+
+
+def test_reference_smoothing_bias_removes_the_derivative_error_at_a_speed_change():
+    """A speed doubling within 0.2 s (60 -> 120 rpm, straight): the reference's 1 s quadratic Savitzky-Golay
+    derivative cannot follow it, so its error against the closed-form truth in the 1.5 s after the change is ~10x
+    the position noise's share; removing the error the same operator makes on the pose dead-reckoned from the gyro
+    and the encoders leaves less than a third of it (the rest: the net slip, which dead reckoning leaves out, and
+    the 0.1 s smoothing of the encoder speed)."""
+    run = synthetic_run("step", 3, knots_rpm=[(0, 0, 0), (1, 60, 60), (5, 60, 60), (5.2, 120, 120), (10, 120, 120)])
+    ref_only = run.without_truth()
+    t, _, gyr, enc = align_inputs(ref_only)
+    vx, _, var = reference_body_velocity(ref_only, t)
+    bx, by = reference_smoothing_bias(ref_only, t, gyr, enc, R_WHEEL)
+    w = (t > TESTBED.t_rest + 4.5) & (t < TESTBED.t_rest + 6.0)
+    before = np.sqrt(np.mean((vx - run["truth_vx"])[w] ** 2))
+    after = np.sqrt(np.mean((vx - bx - run["truth_vx"])[w] ** 2))
+    assert before > 5 * math.sqrt(var)
+    assert after < before / 3
+    steady = (t > TESTBED.t_rest + 2.0) & (t < TESTBED.t_rest + 4.0)  # a quadratic fits: no correction there
+    assert np.abs(bx[steady]).max() < 1e-3 and np.nanmax(np.abs(by)) < 1e-3  # straight: no lateral smoothing error
+
+
+def test_lateral_reference_noise_includes_the_smoothed_yaw_noise():
+    """Straight line at 150 rpm, 8 seeds: the variance of the W-sample means of the reference's lateral velocity
+    error (truth closed form) matches reference_velocity_noise_mean_var with the mean square speed (the smoothed yaw
+    noise rotates the forward speed into v_y) within 25 % at 2 and 4 s windows, where the position noise alone is
+    at least 40 % low."""
+    errs = []
+    for seed in range(8):
+        run = synthetic_run("fast", seed, knots_rpm=[(0, 0, 0), (1, 150, 150), (31, 150, 150)])
+        t = run.t
+        _, vy, _ = reference_body_velocity(run.without_truth(), t)
+        errs.append(np.where((t > 3.0) & (t < t[-1] - 1.0), vy - run["truth_vy"], np.nan))
+    dt = float(np.median(np.diff(run.t)))
+    v = float(np.mean(run["truth_vx"][run.t > 3.0]))
+    pos_only = reference_velocity_noise_mean_var(run, dt)
+    with_yaw = reference_velocity_noise_mean_var(run, dt, speed_ms=v * v)
+    for w in (250, 500):
+        data = moving_mean_var(errs, w)
+        assert with_yaw(w) == pytest.approx(data, rel=0.25)
+        assert pos_only(w) < 0.6 * data
+
+
+def test_trailing_mean_of_count_differences_telescopes():
+    """Encoder speeds as count differences of a wheel at 21.3 counts per sample: the trailing mean over N samples
+    is the count difference over N samples (exact, closed form), so its quantisation error is below one count over
+    the window, q / (N dT), where a single sample's is up to q / dT; NaN samples are skipped."""
+    dt, q, n_win = 0.008, 2 * math.pi / 2000, 12
+    t = np.arange(400) * dt
+    w_true = 21.3 * q / dt
+    counts = np.floor(w_true * t / q + 0.37)
+    w = np.concatenate(([0.0], np.diff(counts) * q / dt))
+    enc = np.column_stack((w, 0.5 * w))
+    sm = trailing_mean(enc, t, n_win * dt)
+    k = np.arange(n_win, t.size)
+    np.testing.assert_allclose(sm[k, 0], (counts[k] - counts[k - n_win]) * q / (n_win * dt), rtol=1e-12)
+    assert np.abs(sm[k, 0] - w_true).max() <= q / (n_win * dt) + 1e-12
+    assert np.abs(w[1:] - w_true).max() > 0.5 * q / dt
+    enc[100, 0] = np.nan
+    assert np.isfinite(trailing_mean(enc, t, n_win * dt)[100:120, 0]).all()
+    np.testing.assert_array_equal(trailing_mean(enc, t, 0.0), enc)
+
+
+def test_imu_mean_integrates_a_linear_yaw_rate_exactly():
+    """Level, at rest in translation, gyro z = alpha t sampled without noise, no encoder rows: the trapezoidal
+    strapdown (imu_mean) gives the yaw alpha t^2 / 2 to rounding; holding each sample over the next step (Yi's
+    forward Euler) leaves it behind by alpha t dT / 2 = w dT / 2 (closed form)."""
+    t, acc, gyr, enc, p, x0, p0 = _level_rest(n=400)  # yaw stays below pi
+    alpha, dt = 0.4, float(t[1] - t[0])
+    gyr = gyr.copy()
+    gyr[:, 2] = alpha * t
+    enc = np.full_like(enc, np.nan)
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, variant=1, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=GaussMarkov(0.01, 1.0, 0.01), slip_rows="state")
+    yaw_mean = run_filter_gm(t, acc, gyr, enc, imu_mean=True, **kw)[0].state[:, 8]
+    yaw_fwd = run_filter_gm(t, acc, gyr, enc, imu_mean=False, **kw)[0].state[:, 8]
+    np.testing.assert_allclose(yaw_mean, alpha * t**2 / 2, atol=1e-12)
+    np.testing.assert_allclose(alpha * t**2 / 2 - yaw_fwd, alpha * t * dt / 2, atol=1e-12)
+
+
+def test_enc_gamma_is_refused_outside_scheme_3_with_the_slip_state():
+    t, acc, gyr, enc, p, x0, p0 = _level_rest(n=20)
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=GaussMarkov(0.01, 1.0, 0.01), gm_y=GaussMarkov(0.01, 1.0, 0.01))
+    with pytest.raises(ValueError, match="enc_gamma needs scheme 3"):
+        run_filter_gm(t, acc, gyr, enc, variant=1, slip_rows="state", enc_gamma=enc, **kw)
+    with pytest.raises(ValueError, match="enc_gamma needs scheme 3"):
+        run_filter_gm(t, acc, gyr, enc, variant=3, slip_rows="feedback", enc_gamma=enc, **kw)
+    with pytest.raises(ValueError, match="enc_gamma needs scheme 3"):
+        run_filter_gm(t, acc, gyr, enc, variant=3, slip_rows="state", enc_gamma=enc[:5], **kw)

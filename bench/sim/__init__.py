@@ -20,7 +20,7 @@ from bench.sim.commands import wheel_reference
 from bench.sim.testbed import GRAVITY, PhysicsTrace, run_physics
 from bench.spec import Scenario, to_dict
 
-TESTBED_VERSION = "1"  # bump when the physics changes: part of the run-cache key
+TESTBED_VERSION = "2"  # bump when the physics changes: part of the run-cache key
 
 
 def scenario_hash(scn: Scenario) -> str:
@@ -29,16 +29,43 @@ def scenario_hash(scn: Scenario) -> str:
     return hashlib.sha256(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
+def pose_time_aligned(tr: PhysicsTrace) -> dict[str, np.ndarray]:
+    """The trace's rate columns moved onto the time of its pose (row k: time t_k = k dt).
+
+    Bullet integrates semi-implicitly (velocity first, then x_(k+1) = x_k + v_(k+1) dt), and the loop logs
+    the base pose and velocity read before step k: the velocity of row k is the one that moved the pose
+    from t_(k-1) to t_k, i.e. the mean over that step (time t_k - dt/2).  The wheel update of row k runs
+    after that read: its speed is the mean over [t_k, t_(k+1)] (time t_k + dt/2) and its angle the one at
+    t_(k+1).  Taken at face value the chassis rates lag the pose by dt/2 (the integrated gyro then lags the
+    yaw by w dt/2: 2 mrad at 0.5 rad/s and dt = 1/120 s) and the wheel angles lead it by dt.  Here each
+    rate is the mean of its two step means around t_k and each wheel angle the one at t_k (exact for the
+    piecewise-constant step velocities), so that integrating the logged rates gives the logged pose.
+    Returns the columns vx, vy, vz, wx, wy, wz, wl, wr, th_l, th_r."""
+    t = tr["t"]
+    dt = float(t[1] - t[0]) if t.size > 1 else 0.0
+    out: dict[str, np.ndarray] = {}
+    for c in ("vx", "vy", "vz", "wx", "wy", "wz"):  # step means over [t_(k-1), t_k] -> value at t_k
+        v = tr[c]
+        out[c] = 0.5 * (v + np.concatenate((v[1:], v[-1:])))
+    for s in ("l", "r"):  # step means over [t_k, t_(k+1)] -> value at t_k; angle at t_(k+1) -> at t_k
+        w = tr[f"w{s}"]
+        out[f"w{s}"] = 0.5 * (w + np.concatenate((w[:1], w[:-1])))
+        out[f"th_{s}"] = tr[f"th_{s}"] - w * dt
+    return out
+
+
 def truth_from_trace(tr: PhysicsTrace, scn: Scenario) -> dict[str, np.ndarray]:
-    """Physics-rate truth: geometric-centre pose, body velocities, slips, ICRs, specific force."""
+    """Physics-rate truth: geometric-centre pose, body velocities, slips, ICRs, specific force (rates and wheel
+    angles at the pose's time, :func:`pose_time_aligned`)."""
     plat = scn.platform
     t = tr["t"]
+    al = pose_time_aligned(tr)
     rot = Rotation.from_quat(np.column_stack([tr["qx"], tr["qy"], tr["qz"], tr["qw"]]))
     Rm = rot.as_matrix()
     cg_world = rot.apply(np.array(tr.cg_offset))
     p_com = np.column_stack([tr["px"], tr["py"], tr["pz"]])
-    v_com = np.column_stack([tr["vx"], tr["vy"], tr["vz"]])
-    omega = np.column_stack([tr["wx"], tr["wy"], tr["wz"]])
+    v_com = np.column_stack([al["vx"], al["vy"], al["vz"]])
+    omega = np.column_stack([al["wx"], al["wy"], al["wz"]])
     p_c = p_com - cg_world
     v_c = v_com - np.cross(omega, cg_world)
     v_b = np.einsum("nji,nj->ni", Rm, v_c)
@@ -48,7 +75,7 @@ def truth_from_trace(tr: PhysicsTrace, scn: Scenario) -> dict[str, np.ndarray]:
     f_b = np.einsum("nji,nj->ni", Rm, a_com + np.array([0.0, 0.0, GRAVITY]))
     r_l = plat.wheel_radius * plat.wheel_radius_scale_l
     r_r = plat.wheel_radius * plat.wheel_radius_scale_r
-    v_l, v_r = r_l * tr["wl"], r_r * tr["wr"]
+    v_l, v_r = r_l * al["wl"], r_r * al["wr"]
     vx, vy, wz = v_b[:, 0], v_b[:, 1], w_b[:, 2]
     half = plat.track / 2
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -58,7 +85,7 @@ def truth_from_trace(tr: PhysicsTrace, scn: Scenario) -> dict[str, np.ndarray]:
     return {
         "x": p_c[:, 0], "y": p_c[:, 1], "z": p_c[:, 2], "yaw": np.unwrap(yaw), "pitch": pitch, "roll": roll,
         "vx": vx, "vy": vy, "vz": v_b[:, 2], "wx": w_b[:, 0], "wy": w_b[:, 1], "wz": wz,
-        "wl": tr["wl"], "wr": tr["wr"], "th_l": tr["th_l"], "th_r": tr["th_r"],
+        "wl": al["wl"], "wr": al["wr"], "th_l": al["th_l"], "th_r": al["th_r"],
         "slip_l": slip_l, "slip_r": slip_r, "y_l": y_l, "y_r": y_r, "x_icr": x_icr,
         "fx_b": f_b[:, 0], "fy_b": f_b[:, 1], "fz_b": f_b[:, 2],
         "com_x": p_com[:, 0], "com_y": p_com[:, 1], "vcom_x": v_com[:, 0], "vcom_y": v_com[:, 1],

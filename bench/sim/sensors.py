@@ -38,15 +38,18 @@ def streams(seed: int) -> dict[str, np.random.Generator]:
 
 def encoders(t: np.ndarray, theta_l: np.ndarray, theta_r: np.ndarray, scn: Scenario,
              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """Quantised encoder speeds (rad/s) at times t from wheel angles at those times."""
+    """Quantised encoder speeds (rad/s) at times t from wheel angles at those times: count differences over the
+    sample period.  Each wheel's count origin is an independent uniform phase within one count (drawn from
+    ``rng``): a disc's edges are not aligned with the wheel's starting angle, so a wheel at rest on an edge does not
+    tick from creep, and two wheels turning at related speeds do not quantise in lockstep."""
     spec = scn.platform.sensors.encoder
     q = 2.0 * math.pi / spec.counts_per_rev
+    phase = rng.uniform(0.0, 1.0, 2)
     out = []
-    for theta, scale in ((theta_l, spec.scale_error_l), (theta_r, spec.scale_error_r)):
-        counts = np.floor(theta * (1.0 + scale) / q)
+    for theta, scale, u in ((theta_l, spec.scale_error_l, phase[0]), (theta_r, spec.scale_error_r, phase[1])):
+        counts = np.floor(theta * (1.0 + scale) / q + u)
         speed = np.diff(counts, prepend=counts[0]) * q / np.diff(t, prepend=t[0] - 1.0 / spec.rate_hz)
         out.append(speed)
-    _ = rng  # quantisation is the encoders' noise; stream reserved for dropout models
     return out[0], out[1]
 
 
