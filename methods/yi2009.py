@@ -39,8 +39,9 @@ Map: paper equation -> code
                                                                      :func:`ekf_v1`, :func:`ekf_v2`, :func:`ekf_v3`
     (not Yi's)     consistent configuration (issue 4): slip as a state, the v_x (13) / v_y (15) pseudo-measurement
                    errors as first-order Gauss-Markov states, encoder quantisation states, roll Jacobian at the
-                   modelled v_By, traction slip of the v_x row, S correction of the v_y row, IMU noise and
-                   levelling precision identified on calibration runs against the reference sensor
+                   modelled v_By, traction slip of the v_x row, S correction of the v_y row, trapezoidal IMU
+                   integration, gamma (40) from smoothed wheel speeds, IMU noise and levelling precision identified
+                   on calibration runs against the reference sensor (its smoothing error removed)
                                                        -> :class:`GaussMarkov`, :func:`run_filter_gm`,
                                                           :class:`TractionSlip`, :func:`fit_traction_slip`,
                                                           :class:`IcrCorrection`, :func:`fit_icr_correction`,
@@ -50,7 +51,9 @@ Map: paper equation -> code
                                                           :func:`static_imu_noise`, :func:`at_rest_start`,
                                                           :func:`encoder_white_floor`, :func:`encoder_quantisation`,
                                                           :func:`reference_body_velocity`,
+                                                          :func:`reference_smoothing_bias`,
                                                           :func:`reference_velocity_noise_mean_var`,
+                                                          :func:`trailing_mean`,
                                                           :class:`Yi2009EkfConsistent`,
                                                           :func:`ekf_v1_consistent` .. ``_v3_consistent``
 
@@ -1142,7 +1145,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
         row_k = (math.nan, math.nan)
         x_fused = False
         if k > 0:
-            # ---------------- prediction (26a)-(26b) with u(k-1) (imu_mean: mean of u(k-1), u(k)), from X(k-1|k-1) -------
+            # ------ prediction (26a)-(26b) with u(k-1) (imu_mean: mean of u(k-1), u(k)), from X(k-1|k-1) ------
             # (sf..cp, c11..c33 hold the trigonometry/DCM (2) of the posterior of step k-1)
             dt = t_l[k] - t_l[k - 1]
             ax, ay, az = accp_l[k - 1]
@@ -1695,6 +1698,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if not (isinstance(self.gamma_smoothing, (int, float)) and math.isfinite(self.gamma_smoothing)
+                and self.gamma_smoothing >= 0):
+            raise ValueError(f"{self.name}: gamma_smoothing = {self.gamma_smoothing!r}: must be finite and >= 0 [s]")
         if self.traction_slip and self.slip_rows != "state":
             raise ValueError(f"{self.name}: traction_slip needs slip_rows='state' (got {self.slip_rows!r}): with the "
                              "fed-back slip (13)-(14) the row already carries the filter's slip estimate")

@@ -1246,3 +1246,10 @@ def test_enc_gamma_is_refused_outside_scheme_3_with_the_slip_state():
         run_filter_gm(t, acc, gyr, enc, variant=3, slip_rows="feedback", enc_gamma=enc, **kw)
     with pytest.raises(ValueError, match="enc_gamma needs scheme 3"):
         run_filter_gm(t, acc, gyr, enc, variant=3, slip_rows="state", enc_gamma=enc[:5], **kw)
+
+
+def test_gamma_smoothing_must_be_finite_and_non_negative():
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(ValueError, match="gamma_smoothing"):
+            ekf_v3_consistent(gamma_smoothing=bad)
+    assert ekf_v3_consistent(gamma_smoothing=0.0).gamma_speeds(np.arange(3.0), np.zeros((3, 2))) is None
