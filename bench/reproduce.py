@@ -27,6 +27,10 @@ Each paper declares its experiments in ``scenarios/papers/<paper>.toml``::
     direction = "decreasing"
     tolerance = 0.01
 
+An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
+standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
+inside the measurement's sampling error is not reported as holding.
+
 Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
 A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,
 figure and note registration) and returns its metrics.  Verdicts are computed from the numbers;
@@ -123,7 +127,7 @@ def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
     """The metric ids a claim reads, by its kind."""
     kind = claim.get("kind")
     if kind == "ordering":
-        return list(claim["metrics"])
+        return list(claim["metrics"]) + ([claim["margin"]] if "margin" in claim else [])
     if kind == "ratio":
         return [claim["num"], claim["den"]]
     if kind == "trend":
@@ -193,13 +197,17 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
         return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
 
     kind = claim["kind"]
-    if kind == "ordering":
+    if kind == "ordering":  # a < b < ...; with "margin" (a metric, e.g. 2 standard errors): a + margin < b ...
         ids = claim["metrics"]
         vals = [get(m) for m in ids]
-        if any(v is None for v in vals):
+        margin = get(claim["margin"]) if "margin" in claim else 0.0
+        if any(v is None for v in vals) or margin is None:
             return None, "missing metric"
-        ok = all(a < b for a, b in zip(vals, vals[1:]))
-        return ok, " < ".join(f"{m.split('.')[-1]} = {_fmt(v)}" for m, v in zip(ids, vals))
+        ok = all(a + margin < b for a, b in zip(vals, vals[1:]))
+        text = " < ".join(f"{m.split('.')[-1]} = {_fmt(v)}" for m, v in zip(ids, vals))
+        if "margin" in claim:
+            text += f" by more than {claim['margin'].split('.')[-1]} = {_fmt(margin)}"
+        return ok, text
     if kind == "ratio":
         n, d = get(claim["num"]), get(claim["den"])
         if n is None or d is None or d == 0:

@@ -88,6 +88,35 @@ def test_evaluate_claim_kinds():
     assert R.evaluate_claim({"kind": "flag", "metric": "a.missing"}, m)[0] is None
 
 
+def test_ordering_claim_with_a_margin_holds_only_beyond_it():
+    """a < b by 1.0: holds with a margin of 0.9, not with 1.1 (an ordering inside the sampling error), and a
+    missing margin metric is a missing metric, not a pass."""
+    m = {"a.x": 1.0, "a.y": 2.0, "a.small": 0.9, "a.big": 1.1}
+    claim = {"kind": "ordering", "metrics": ["a.x", "a.y"]}
+    ok, text = R.evaluate_claim({**claim, "margin": "a.small"}, m)
+    assert ok is True and "by more than small = 0.9" in text
+    assert R.evaluate_claim({**claim, "margin": "a.big"}, m)[0] is False
+    assert R.evaluate_claim({**claim, "margin": "a.none"}, m)[0] is None
+    assert R.claim_metric_ids({**claim, "margin": "a.big"}) == ["a.x", "a.y", "a.big"]
+
+
+def test_paired_margin_is_two_standard_errors_of_the_mean_difference():
+    """Independent paired differences (sd 1, 20000 pairs): two standard errors 2 / sqrt(n) (closed form) within
+    10 %; MA(1) differences e_k - e_(k-1) (adjacent segments sharing a reference sample) have a sum that
+    telescopes, so the batch-means margin is far below the iid formula's 2 sqrt(2) / sqrt(n)."""
+    import numpy as np
+    from methods.mandow2007_repro import paired_margin
+
+    rng = np.random.default_rng(5)
+    n = 20_000
+    d = rng.standard_normal(n)
+    assert paired_margin(d, np.zeros(n)) == pytest.approx(2.0 / np.sqrt(n), rel=0.1)
+    e = rng.standard_normal(n + 1)
+    ma = e[1:] - e[:-1]
+    assert paired_margin(ma, np.zeros(n)) < 0.5 * 2.0 * np.sqrt(2.0) / np.sqrt(n)
+    assert np.isnan(paired_margin(d[:15], np.zeros(15)))
+
+
 def test_cache_second_run_simulates_nothing(tmp_path):
     scn = load_scenario("straight_0p2_vinyl", {"duration": 1.0})
     r1 = Runner(cache_dir=tmp_path)

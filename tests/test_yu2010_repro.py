@@ -197,3 +197,24 @@ def test_motor_power_limit_sets_the_climbing_speed() -> None:
     assert free.wl[-1] > w0  # without the limit the model accelerates up the 15 deg ramp
     with pytest.raises(ValueError, match="P_max"):
         YuParams(P_max=-1.0)
+
+
+def test_initial_wheel_speed_within_one_count_is_rest() -> None:
+    """The first count difference after t0 is the initial wheel speed, except within one count per sample of 0
+    (2 pi / counts_per_rev x rate_hz = 1.2566 rad/s here), which is rest: a wheel starting under a ramp reads one
+    count in its first sample.  Without the encoder spec no reading is rounded."""
+    from methods.yu2010.plugin import initial_wheel_speeds
+
+    t = np.round(np.arange(0, 1, 0.01), 10)
+    one = 2 * np.pi / 500 * 100
+    enc_spec = {"platform": {"sensors": {"encoder": {"counts_per_rev": 500, "rate_hz": 100.0}}}}
+
+    def run_with(wl1: float, wr1: float, meta: dict):
+        wl, wr = np.zeros_like(t), np.zeros_like(t)
+        wl[1:], wr[1:] = wl1, wr1
+        return from_arrays({"t": t, "enc_wl": wl, "enc_wr": wr}, {"run_id": "init", **meta})
+
+    assert initial_wheel_speeds(run_with(one, -one, enc_spec)) == (0.0, 0.0)
+    assert initial_wheel_speeds(run_with(2 * one, one, enc_spec)) == pytest.approx((2 * one, 0.0))
+    assert initial_wheel_speeds(run_with(one, one, {})) == pytest.approx((one, one))
+    assert initial_wheel_speeds(from_arrays({"t": t}, {"run_id": "no encoders"})) == (0.0, 0.0)

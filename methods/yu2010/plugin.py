@@ -2,7 +2,7 @@
 
 ``estimate(run)`` predicts from the commands (and, for the open loop, the measured torques) and
 the initial state only: wheel speeds from the first encoder sample after the first time stamp
-within 50 ms (0 when absent), initial pose
+within 50 ms (0 when absent or within one count of 0: :func:`initial_wheel_speeds`), initial pose
 from the first reference (else GNSS) sample (0 when absent).  The pose follows from the simulated
 wheel speeds through the kinematic model eq. (1) with alpha (body frame x forward:
 vx = r (w_l + w_r)/2, vy = 0, wz = r (w_r - w_l)/(alpha B)), integrated exactly on SE(2).
@@ -93,6 +93,28 @@ def steady_summary(run: Run, settle: float = 1.0, settle_fraction: float = 0.3) 
     return SteadySummary(run.id, float(cl[-1]), float(cr[-1]), wl, wr, tl, tr, yaw_rate, float(t0), float(end))
 
 
+def initial_wheel_speeds(run: Run, window: float = 0.05) -> tuple[float, float]:
+    """Wheel speeds [rad/s] at the run's first time stamp: the first encoder sample strictly after it within
+    ``window`` s (an encoder speed is a count difference: a sample at the very first time stamp has no earlier count
+    and reads 0 even when the vehicle already moves; Yu's ramps start at speed); (0, 0) when either side has none.
+    A reading within one count per sample of zero (``meta.platform.sensors.encoder``: 2 pi / counts_per_rev x
+    rate_hz) is taken as rest: a wheel that starts from rest under a ramp already reads one count in its first
+    sample (0.077 rad/s on the P3-AT, 10 ms in), and starting the model's wheels at that speed with the vehicle
+    at rest made its start-up torque chatter (closed-loop torque RMS 0.37 N m against 0.11 from rest on the
+    0.2 m/s straight)."""
+    t0 = float(run.t[0])
+    wl = _first_sample(run, "enc_wl", t0 + window, after=t0)
+    wr = _first_sample(run, "enc_wr", t0 + window, after=t0)
+    if wl is None or wr is None:
+        return 0.0, 0.0
+    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
+    cpr, rate = (spec.get("counts_per_rev"), spec.get("rate_hz")) if isinstance(spec, Mapping) else (None, None)
+    if all(isinstance(v, (int, float)) and np.isfinite(v) and v > 0 for v in (cpr, rate)):
+        one_count = 2.0 * np.pi / float(cpr) * float(rate)
+        wl, wr = (0.0 if abs(w) <= one_count * (1.0 + 1e-9) else w for w in (wl, wr))
+    return float(wl), float(wr)
+
+
 def _first_sample(run: Run, name: str, t_max: float, after: float | None = None) -> float | None:
     """First finite sample of ``name`` up to ``t_max``; with ``after``, the first one strictly
     later than ``after`` if there is one (else the first)."""
@@ -140,12 +162,7 @@ class Yu2010:
 
     def _initial_state(self, run: Run) -> tuple[tuple[float, float], tuple[float, float, float]]:
         t0 = float(run.t[0])
-        near = t0 + 0.05
-        # an encoder speed is a count difference: a sample at the very first time stamp has no
-        # earlier count and reads 0 even when the vehicle already moves (Yu's ramps start at speed)
-        wl = _first_sample(run, "enc_wl", near, after=t0)
-        wr = _first_sample(run, "enc_wr", near, after=t0)
-        w0 = (wl or 0.0, wr or 0.0) if wl is not None and wr is not None else (0.0, 0.0)
+        w0 = initial_wheel_speeds(run)
         for px, py, pyaw in (("ref_x", "ref_y", "ref_yaw"), ("gnss_x", "gnss_y", "gnss_yaw")):
             x, y, yaw = (_first_sample(run, c, t0 + 1.0) for c in (px, py, pyaw))
             if x is not None and y is not None:

@@ -53,7 +53,7 @@ from bench.spec import Scenario, load_scenario
 from methods.yu2010.commands import LEMNISCATE_TAU0, commanded_radii, lemniscate_xy
 from methods.yu2010.identification import evenly_spaced, identify_from_speeds
 from methods.yu2010.params import YuParams
-from methods.yu2010.plugin import SteadySummary, Yu2010, Yu2010OpenLoop, steady_summary
+from methods.yu2010.plugin import SteadySummary, Yu2010, Yu2010OpenLoop, initial_wheel_speeds, steady_summary
 from methods.yu2010.steady import steady_torques, wang2015_table1_params, wang_steady_state
 
 TABLE1_N = (2, 3, 4, 5, 6, 7, 8, 11, 16, 31)  # Yu 2010 Table I
@@ -107,22 +107,17 @@ def _save(ctx: Any, fig: Any, name: str, caption: str) -> None:
 
 def ramped_command(run: Run, accel: float, wheel_radius: float) -> Run:
     """``run`` with its commanded wheel speeds rate-limited at ``accel / wheel_radius`` [rad/s^2]
-    per side, starting from the initial wheel speed (the first encoder sample after the first time
-    stamp, 0 when absent) -- the command ramp Yu describes (Secs. V-B, V-C) and the testbed applies
-    to its PID reference.  ``accel`` <= 0 returns ``run`` unchanged.  A rate limiter is recursive,
-    so this loops over the command samples (a few thousand)."""
+    per side, starting from the initial wheel speed (the model's, :func:`methods.yu2010.plugin.initial_wheel_speeds`)
+    -- the command ramp Yu describes (Secs. V-B, V-C) and the testbed applies to its PID reference.  ``accel`` <= 0
+    returns ``run`` unchanged.  A rate limiter is recursive, so this loops over the command samples (a few
+    thousand)."""
     if accel <= 0:
         return run
     data = run.data.copy()
     limit = accel / wheel_radius
     t_all = run.t
-    for cmd, enc in (("cmd_wl", "enc_wl"), ("cmd_wr", "enc_wr")):
+    for cmd, w in zip(("cmd_wl", "cmd_wr"), initial_wheel_speeds(run)):
         tc, target = run.samples(cmd)
-        w = 0.0
-        if enc in run.data.columns:
-            te, we = run.samples(enc)
-            later = np.flatnonzero((te > t_all[0]) & (te <= t_all[0] + 0.05))
-            w = float(we[later[0]]) if later.size else 0.0
         out = np.empty_like(target)
         steps = limit * np.diff(tc, prepend=tc[0])
         tgt = target.tolist()
