@@ -101,12 +101,20 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     stationary Gauss-Markov model fitted over gradual and step commands too large for steady paths and too small for
     the steps); (6) in scheme 3 subtracts the S correction of the v_y row, (c_0 + c_1 v |w_z|) w_z
     (:class:`IcrCorrection`, fitted the same way: the testbed's S grows with the centripetal acceleration, which
-    S(gamma) (41) cannot express; 2 s RMS of the row error on the calibration runs 0.032 -> 0.0032 m/s against
-    the reference).  sigma, tau and the white part of each row (from
+    S(gamma) (41) cannot express; 2 s RMS of the row error on the calibration runs 0.032 -> 0.0024 m/s against
+    the reference); (7) integrates the IMU by the trapezoidal rule (``imu_mean``; holding each sample over the next
+    step leaves the heading w dT/2 behind in a turn); (8) in scheme 3 computes gamma (40) and the S correction from
+    a 0.1 s trailing mean of the wheel speeds (``gamma_smoothing``; through the convex S(gamma) the encoder
+    quantisation otherwise biased the v_y row by turn and walked the heading off: figure-8 heading error 0.006 ->
+    0.0023 rad, seed 0).  sigma, tau and the white part of each row (from
     moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
     white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
     sensor (:func:`identify_yi_noise`; the reproduction uses the dedicated runs scenarios/yi_calib.toml and
-    yi_calib_steps.toml).  Earlier versions, measured and replaced (see the nees note for their numbers): white R
+    yi_calib_steps.toml), whose velocity has its Savitzky-Golay smoothing error at command changes predicted from
+    the gyro and encoders and removed (:func:`reference_smoothing_bias`: 0.023 -> 0.011 m/s RMS along the heading
+    on the step run, where the position noise accounts for 0.009; without it the v_x row's white part came out
+    0.018 m/s against the truth's 0.010-0.011) and whose lateral noise includes the smoothed reference yaw's
+    (:func:`reference_velocity_noise_mean_var`).  Earlier versions, measured and replaced (see the nees note for their numbers): white R
     inflated by (1 + rho)/(1 - rho) (R of metres per second wherever the calibration data contain a bias); the
     slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time); skipping
     the rows at the clip (the lock stays, position RMS 14 m); a two-lag autocovariance fit of sigma, tau (unstable
@@ -123,10 +131,12 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     difference of the residual (blind to the reference derivative's lag at the steps: 0.0107 m/s against the truth's
     0.0103-0.0114, where C(0) gives 0.018 m/s): in band -3 to -8 points, because the actual along-track error falls
     with the claimed one.
-    What keeps the along-track velocity cautious (measured): on the straight line and the circle the no-slip row
-    r (w_L + w_R)/2 has no high-frequency error at all (30/30 rpm and 80 + 40 rpm are whole numbers of counts per
-    sample in the sum, which the wheel-speed PID holds), so the white R identified where speeds change (quantisation,
-    0.01 m/s) is not there; the filter's along error is then the accelerometer noise alone.
+    What keeps the along-track velocity cautious (measured): the v_x row's white part is the encoder quantisation,
+    a count difference whose sum telescopes, so the filter's actual error is below what white noise of that size
+    implies; on the straight line (30/30 rpm: 8 whole counts per sample on each wheel, held by the wheel-speed PID)
+    the row has no high-frequency error at all, and the filter's along error is the accelerometer noise alone.
+    Modelling the quantisation as the moving average it is (``quantisation_states``) leaves a white rest identified
+    at the calibration runs' transients that is present all the time, and comes out more cautious still.
 
 Variants (Fig. 5, Sec. V-C)
     1: v_x (13) without slip (lambda' = 0) and v_z (11);  2: v_x with slip feedback (13)-(14) and
@@ -1624,12 +1634,14 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       on the calibration runs and subtracted from the v_x row, so that the Gauss-Markov state carries only the rest;
     * ``icr_correction`` (scheme 3, slip state only): the S correction (c_0 + c_1 v |w_z|) w_z of the v_y row (15)
       (:class:`IcrCorrection`) identified on the calibration runs and subtracted, so that the Gauss-Markov state
-      carries only the rest.  Measured against the truth (analysis only; the method never sees it): the row error of
+      carries only the rest.  Measured against the truth (analysis only; the method never sees it; testbed version 1
+      except where stated): the row error of
       the S(gamma) fitted on Yi's identification runs is 0.032 m/s RMS on the calibration runs, 0.0007 m/s on the
       straight path and 0.052 m/s on the circle (seed 0), nearly (S_true - S) w_z with S_true - S = -0.10 m in the
       circle's and the figure-8's turns.  The testbed's S grows with the centripetal acceleration: at one gamma
-      (7:3 on concrete, the reproduction's diagnosis) the true S is 1.7 / 4.1 / 7.5 / 11.7 cm at 70/30 ... 175/75 rpm,
-      in the ratio 1 : 2.4 : 4.4 : 6.8 against 1 : 2.25 : 4 : 6.25 for v |w_z|; (41), a function of gamma alone
+      (7:3 on concrete, the reproduction's diagnosis) the true S is 1.7 / 4.1 / 7.5 / 11.7 cm at 70/30 ... 175/75 rpm
+      (version 2: 1.5 / 3.9 / 7.1 / 11.3 cm), in the ratio 1 : 2.4 : 4.4 : 6.8 (1 : 2.6 : 4.7 : 7.5) against
+      1 : 2.25 : 4 : 6.25 for v |w_z|; (41), a function of gamma alone
       fitted over sand and concrete, cannot express that.  Tried and not kept: the S error as a Gauss-Markov state
       multiplied by the yaw rate (b_y's column w_z).  With the yaw rate of the step as the column, the column carries
       the gyro noise n_k that is also in the row -S (w + n_k); in a steady turn n_k is the column's only variation, so
