@@ -136,15 +136,10 @@ def _mandow_errors(seg: SegmentErrors) -> dict[str, float]:
     return {"ms_dx": ms_dx, "ms_dy": ms_dy, "ms_dphi": ms_dphi, "ms_j": ms_dx + ms_dy + ms_dphi, "n": float(seg.n)}
 
 
-def _segment_scores(run: Run, est: Estimate, source: str, duration: float | None = None) -> dict[str, float]:
-    """Table III numbers of one estimate: segments between consecutive samples of ``source``
-    (``ref`` = the DGPS, or ``truth`` sampled at the DGPS instants), or ``duration`` s long
-    (consecutive, starting at DGPS samples) when given."""
-    return _mandow_errors(_segments(run, est, source, duration))
-
-
 def _segments(run: Run, est: Estimate, source: str, duration: float | None = None) -> SegmentErrors:
-    """The segment errors behind :func:`_segment_scores`."""
+    """Segment errors of one estimate (Table III's numbers: :func:`_mandow_errors`): segments between consecutive
+    samples of ``source`` (``ref`` = the DGPS, or ``truth`` sampled at the DGPS instants), or ``duration`` s long
+    (consecutive, starting at DGPS samples) when given."""
     ref = Trajectory.from_run(run, "ref")
     if source == "truth":
         idx = np.searchsorted(run.t, ref.t)
@@ -190,6 +185,7 @@ class Condition:
     scores: Mapping[str, Mapping[str, float]] = field(default_factory=dict)  # model -> DGPS scores (paper)
     variants: Mapping[str, Mapping[str, Mapping[str, float]]] = field(default_factory=dict)  # VARIANTS key -> model
     path_rms: Mapping[str, float] = field(default_factory=dict)  # model -> whole-path position RMS vs DGPS (Fig. 6)
+    segments: Mapping[str, SegmentErrors] = field(default_factory=dict)  # model -> the DGPS segments behind scores
 
 
 @dataclass(frozen=True)
@@ -237,11 +233,11 @@ def _evaluate(ctx: Any, s: Settings = SETTINGS) -> Evaluation:
         models = {"asymmetric": ga, "asymmetric_de": de, "p3at": registry.calibrate(M.DefaultP3at(), []),
                   "symmetric": sym}
         ests = {k: registry.estimate(m, val) for k, m in models.items()}
-        variants = {v: {k: _segment_scores(val, e, src, d) for k, e in ests.items()}
-                    for v, (src, d) in VARIANTS.items()}
+        segs = {v: {k: _segments(val, e, src, d) for k, e in ests.items()} for v, (src, d) in VARIANTS.items()}
+        variants = {v: {k: _mandow_errors(sg) for k, sg in by_model.items()} for v, by_model in segs.items()}
         dgps = Trajectory.from_run(val, "ref")
         path = {k: position_rms(dgps, Trajectory.from_estimate(e)) for k, e in ests.items()}
-        out[c] = Condition(c[0], c[1], ga, de, sym, val, ests, variants[""], variants, path)
+        out[c] = Condition(c[0], c[1], ga, de, sym, val, ests, variants[""], variants, path, segs[""])
     ev = Evaluation(quick, tuple(seeds), out)
     ctx.scratch[_CACHE_KEY] = ev
     # provenance (small, persisted with the result): content hashes of calibration and scored runs
@@ -330,7 +326,7 @@ def table3(ctx: Any) -> dict[str, float]:
     ev = _evaluate(ctx)
     cond = ev.conditions[SETTINGS.table3_condition]
     out = _model_rows(cond)
-    seg = {m: _segments(cond.validation, cond.estimates[m], "ref") for m in MODELS}
+    seg = cond.segments
     sq = {m: {"ms_dx": seg[m].dy ** 2, "ms_dy": seg[m].dx ** 2} for m in MODELS}  # Mandow's axes (_mandow_errors)
     for k in ("ms_dx", "ms_dy"):
         out[f"others_min_{k}"] = min(cond.scores["p3at"][k], cond.scores["symmetric"][k])

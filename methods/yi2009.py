@@ -165,6 +165,7 @@ from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike
+from scipy.integrate import cumulative_trapezoid
 from scipy.linalg import lapack
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
@@ -690,12 +691,9 @@ def reference_smoothing_bias(run: Run, t: np.ndarray, gyr: np.ndarray, enc: np.n
     v = np.interp(t, t[fin], v[fin])
     n = max(1, int(round(smoothing / float(np.median(np.diff(t)))))) if t.size > 1 else 1
     v = uniform_filter1d(v, n, mode="nearest")
-    dt = np.diff(t)
-    wz = np.nan_to_num(gyr[:, 2])
-    yaw = np.concatenate(([0.0], np.cumsum(0.5 * (wz[:-1] + wz[1:]) * dt)))
-    vxi, vyi = v * np.cos(yaw), v * np.sin(yaw)
-    x = np.concatenate(([0.0], np.cumsum(0.5 * (vxi[:-1] + vxi[1:]) * dt)))
-    y = np.concatenate(([0.0], np.cumsum(0.5 * (vyi[:-1] + vyi[1:]) * dt)))
+    yaw = cumulative_trapezoid(np.nan_to_num(gyr[:, 2]), t, initial=0.0)
+    x = cumulative_trapezoid(v * np.cos(yaw), t, initial=0.0)
+    y = cumulative_trapezoid(v * np.sin(yaw), t, initial=0.0)
     tr = run.t[ok]
     bx, by = _savgol_body_velocity(tr, np.interp(tr, t, x), np.interp(tr, t, y), np.interp(tr, t, yaw), t, h, win,
                                    coef, polyorder)
@@ -1514,7 +1512,8 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
         cal.append(_CalibrationRun(run, r, track, t, acc, gyr, enc, vx, vy, dt_run,
                                    reference_velocity_noise_mean_var(run, dt_run),
                                    reference_velocity_noise_mean_var(run, dt_run, speed_ms=speed_ms), m,
-                                   m & _moving(enc, r, model.params.min_wheel_speed), model.filter_options(run),
+                                   m & _moving(enc, r, model.params.min_wheel_speed),
+                                   model.filter_options(run, t, enc),
                                    x0, p0))
     dt = float(np.median([c.dt for c in cal]))
     info["reference_bias_rms"] = np.sqrt(np.mean(np.square(np.vstack(ref_bias)), axis=0)).tolist()
@@ -1550,17 +1549,17 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                 res_y.append(np.where(c.mask, np.where(c.moving, y_y - c.vy, 0.0), np.nan))
                 s_runs.append(fr.s_icr)
         if want_icr and icr is None:  # pass 0 fused the uncorrected row (15): fit the S correction on its residual
-            feats = [icr_features(c.gyr, _enc_gamma(c), c.r) for c in cal]
+            feats = [icr_features(c.gyr, _gamma_wheel_speeds(c.opts, c.enc), c.r) for c in cal]
             icr, icr_info = fit_icr_correction([np.where(c.moving, e, np.nan) for c, e in zip(cal, res_y)], feats, dt)
             info["icr"] = {**asdict(icr), **icr_info}
-            offsets_y = [_row_offsets(None, icr, c.acc, c.gyr, c.enc, c.r, model.params, _enc_gamma(c))[1]
+            offsets_y = [_row_offsets(None, icr, c.acc, c.gyr, c.enc, c.r, model.params, _gamma_wheel_speeds(c.opts, c.enc))[1]
                          for c in cal]
             res_y = [e - o for e, o in zip(res_y, offsets_y)]  # the row the next passes fuse (its S is not filtered)
 
         new_x = gauss_markov_fit(res_x, dt, windows, known_x, floor_x if not model.quantisation_states else 0.0)
         new_y = None
         if model.variant == 3:  # the gyro's white noise through the row: RMS of its gain d y_y / d w_z x gyro_noise
-            gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, _enc_gamma(c), c.r) if icr else 0.0), np.nan)
+            gain = [np.where(c.moving, s_ + (icr.gyro_gain(c.gyr, _gamma_wheel_speeds(c.opts, c.enc), c.r) if icr else 0.0), np.nan)
                     for c, s_ in zip(cal, s_runs)]
             gain_all = np.concatenate(gain)  # (no moving step: no floor)
             floor_y = (float(np.sqrt(np.nanmean(gain_all**2))) * params.gyro_noise
@@ -1578,11 +1577,10 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
     return params, gm_x, gm_y, traction, icr, info
 
 
-def _enc_gamma(c: _CalibrationRun) -> np.ndarray:
-    """The wheel speeds of gamma (40) and the S correction on a calibration run (its filter options' enc_gamma,
-    else its encoders)."""
-    g = c.opts.get("enc_gamma")
-    return c.enc if g is None else g
+def _gamma_wheel_speeds(opts: Mapping[str, Any], enc: np.ndarray) -> np.ndarray:
+    """The wheel speeds of gamma (40) and the S correction: the filter options' ``enc_gamma``, else ``enc``."""
+    g = opts.get("enc_gamma")
+    return enc if g is None else g
 
 
 def _moving(enc: np.ndarray, r: float, min_wheel_speed: float) -> np.ndarray:
@@ -1690,12 +1688,13 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     def calibration_requires(self) -> frozenset[str]:
         return frozenset(REF_CHANNELS)
 
-    def filter_options(self, run: Run) -> dict[str, Any]:
+    def filter_options(self, run: Run, t: np.ndarray, enc: np.ndarray) -> dict[str, Any]:
         """The run_filter_gm options of this configuration for ``run`` (the quantisation std from its encoder spec,
-        the smoothed wheel speeds of gamma (40) from its encoders)."""
+        the smoothed wheel speeds of gamma (40) from its encoders ``enc`` at the filter steps ``t``, as
+        :func:`align_inputs` gives them)."""
         return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
                 "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0, "imu_mean": self.imu_mean,
-                "enc_gamma": self.gamma_speeds(*align_inputs(run)[::3])}
+                "enc_gamma": self.gamma_speeds(t, enc)}
 
     def gamma_speeds(self, t: np.ndarray, enc: np.ndarray) -> np.ndarray | None:
         """The wheel speeds of gamma (40) and of the S correction (scheme 3 with the slip state and
@@ -1736,8 +1735,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         r, track = _geometry(run)
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = _initial_state_consistent(acc, enc, r, self.params, self.initial_pose, self.unlevelled_p0_rollpitch)
-        opts = self.filter_options(run)
-        enc_g = enc if opts["enc_gamma"] is None else opts["enc_gamma"]
+        opts = self.filter_options(run, t, enc)
+        enc_g = _gamma_wheel_speeds(opts, enc)
         vx_offset, vy_offset = _row_offsets(self.traction, self.icr, acc, gyr, enc, r, self.params, enc_g)
         res, bias, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant,
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
