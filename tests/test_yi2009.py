@@ -67,6 +67,11 @@ from methods.yi2009 import (
     reference_smoothing_bias,
     reference_velocity_noise_mean_var,
     trailing_mean,
+    traction_transient,
+    gm_sigma_steps,
+    yaw_rate_scale,
+    YAW_RATE_SCALE_SECONDS,
+    GM_NEGLIGIBLE_SIGMA,
 )
 
 RPM_TO_RADS = 2.0 * math.pi / 60.0
@@ -902,13 +907,17 @@ def test_scheme3_icr_correction_identified_from_a_wrong_s_gamma():
 
 def test_scheme3_vy_gauss_markov_identified_from_a_wrong_s_gamma():
     """Scheme 3 on the steady turns of :func:`_steady_turns_with_half_s` without the S correction: the v_y row's
-    error is (S_true - S_used) x yaw rate, constant on each turn after the ramp (closed form), so its Gauss-Markov
-    sigma is the RMS of that bias (mean kept) and tau is long."""
+    error is (S_true - S_used) x yaw rate, constant on each turn after the ramp (closed form).  With a constant
+    sigma (``vy_per_yaw_rate`` False) the Gauss-Markov sigma is the RMS of that bias (mean kept); per yaw rate (the
+    default) it is the S error itself, 0.1 m per rad/s; tau is long either way."""
     runs, used, rms_error = _steady_turns_with_half_s()
-    _, _, gm_y, _, _, info = identify_yi_noise(runs, ekf_v3_consistent(s_gamma=used, traction_slip=False,
-                                                                          icr_correction=False), max_iterations=2)
-    assert gm_y.sigma == pytest.approx(rms_error, rel=0.15)
-    assert gm_y.tau > 10.0 and info["iterations"] <= 2
+    for per_yaw_rate, want in ((False, rms_error), (True, 0.1)):
+        model = ekf_v3_consistent(s_gamma=used, traction_slip=False, icr_correction=False,
+                                  vy_per_yaw_rate=per_yaw_rate)
+        _, _, gm_y, _, _, info = identify_yi_noise(runs, model, max_iterations=2)
+        assert gm_y.per_yaw_rate is per_yaw_rate
+        assert gm_y.sigma == pytest.approx(want, rel=0.15)
+        assert gm_y.tau > 10.0 and info["iterations"] <= 2
 
 
 def test_gauss_markov_fit_recovers_a_known_ar1_plus_white_model():
@@ -1047,6 +1056,107 @@ def test_gm_filter_quantisation_states_equal_filterpy_with_the_shift_as_predicti
         assert np.allclose(res.cov[k][:10, :10], kf.P[:10, :10], rtol=1e-8, atol=1e-14), k
         assert np.allclose(res.cov[k][10, :10], kf.P[11, :10], rtol=1e-8, atol=1e-14), k
         assert res.cov[k][10, 10] == pytest.approx(kf.P[11, 11], rel=1e-8)
+
+
+def test_gm_filter_with_a_per_step_sigma_and_skipped_rows_equals_filterpy():
+    """The level-rest linear case with the Gauss-Markov std changing per step (``gm_sigma``: 0.01 m/s, then 0.05)
+    and the v_x row skipped on steps 100-159 (``vx_skip``): FilterPy's KalmanFilter with Q_b(k) = sigma_k^2 (1 - a^2)
+    set before each prediction and, on the skipped steps, the v_z row alone (second implementation).  Covariances
+    agree at every step; a constant gm_sigma equal to the model's sigma gives the filter without it, bit for bit."""
+    t, acc, gyr, enc, p, x0, p0 = _level_rest()
+    n, dt = t.size, float(t[1] - t[0])
+    gm = GaussMarkov(0.01, 0.7, 0.012)
+    sig = np.where(np.arange(n) < 150, 0.01, 0.05)[:, None]
+    skip = (np.arange(n) >= 100) & (np.arange(n) < 160)
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, variant=1, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=gm, store_cov=True)
+    res, _, rows = run_filter_gm(t, acc, gyr, enc, gm_sigma=sig, vx_skip=skip, **kw)
+    assert np.isnan(rows[skip, 0]).all() and np.isfinite(rows[1:][~skip[1:], 0]).all()
+    assert res.n_updates[0] == n - 1 - int(skip.sum())
+    kf = _level_rest_kalman(p, p0, gm, dt)
+    a = math.exp(-dt / gm.tau)
+    for k in range(1, n):
+        kf.Q[9, 9] = sig[k, 0] ** 2 * (1 - a * a)
+        kf.predict()
+        if skip[k]:
+            kf.update(np.zeros(1), R=kf.R[1:, 1:], H=kf.H[1:])
+        else:
+            kf.update(np.zeros(2))
+        assert np.allclose(res.cov[k], kf.P, rtol=1e-8, atol=1e-14), k
+    same, _, _ = run_filter_gm(t, acc, gyr, enc, gm_sigma=np.full((n, 1), gm.sigma), **kw)
+    plain, _, _ = run_filter_gm(t, acc, gyr, enc, **kw)
+    np.testing.assert_array_equal(same.cov, plain.cov)
+    with pytest.raises(ValueError, match="gm_sigma needs shape"):
+        run_filter_gm(t, acc, gyr, enc, gm_sigma=np.full((n, 2), 0.01), **kw)
+    with pytest.raises(ValueError, match="vx_skip needs shape"):
+        run_filter_gm(t, acc, gyr, enc, vx_skip=skip[:-1], **kw)
+
+
+def test_skipped_row_makes_the_previous_quantisation_residual_fresh():
+    """With quantisation states, a step whose v_x row is skipped leaves the next row's u_(k-1) a fresh residual:
+    variance enc_quant^2, uncorrelated with every other state (the count residual of a sample no row has used)."""
+    t, acc, gyr, enc, p, x0, p0 = _level_rest(n=60)
+    sq = 0.007
+    skip = np.zeros(t.size, bool)
+    skip[30] = True
+    res, _, _ = run_filter_gm(t, acc, gyr, enc, wheel_radius=R_WHEEL, track=TRACK, variant=1,
+                              s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0, gm_x=GaussMarkov(0.03, 0.7, 0.004),
+                              store_cov=True, enc_quant=sq, vx_skip=skip)
+    row = res.cov[30][10]
+    assert row[10] == pytest.approx(sq * sq, rel=1e-12) and np.all(np.delete(row, 10) == 0.0)
+    assert np.any(res.cov[29][10, :10] != 0.0)  # after a fused row u_prev is correlated with the velocity
+
+
+def test_traction_transient_gate_closed_form():
+    """f_x of 2 m/s^2 for 0.2 s at 100 Hz: the 0.1 s (10-sample) trailing mean exceeds a 0.5 m/s^2 gate while the
+    window holds at least 3 pulse samples (0.6 > 0.5 > 0.4), samples 102-126, and the gate stays shut 0.3 s
+    (30 samples) longer, to 156; gate 0: never."""
+    dt, n = 0.01, 400
+    t = np.arange(n) * dt
+    acc = np.zeros((n, 3))
+    acc[100:120, 0] = 2.0
+    want = np.zeros(n, bool)
+    want[102:157] = True
+    np.testing.assert_array_equal(traction_transient(acc, t, 0.5), want)
+    np.testing.assert_array_equal(traction_transient(-acc, t, 0.5), want)  # braking as well
+    assert not traction_transient(acc, t, 0.0).any() and not traction_transient(acc, t, 2.5).any()
+
+
+def test_gm_sigma_steps_scales_with_the_trailing_yaw_rate():
+    """A per_yaw_rate Gauss-Markov std is sigma x the trailing mean of |w_z| over YAW_RATE_SCALE_SECONDS (closed form
+    on a constant turn of -0.4 rad/s after the window fills; 0 rad/s gives the floor), a constant one stays sigma,
+    and no per_yaw_rate error means no per-step sigma (None)."""
+    dt, n = 0.008, 400
+    t = np.arange(n) * dt
+    gyr = np.zeros((n, 3))
+    gyr[200:, 2] = -0.4
+    gx, gy = GaussMarkov(0.002, 1.0, 0.01), GaussMarkov(0.003, 2.0, 1e-4, per_yaw_rate=True)
+    sig = gm_sigma_steps((gx, gy), gyr, t)
+    w = int(round(YAW_RATE_SCALE_SECONDS / dt))
+    np.testing.assert_allclose(yaw_rate_scale(gyr, t)[200 + w:], 0.4, rtol=1e-12)
+    assert np.all(sig[:, 0] == 0.002)
+    np.testing.assert_allclose(sig[200 + w:, 1], math.hypot(0.003 * 0.4, GM_NEGLIGIBLE_SIGMA), rtol=1e-12)
+    np.testing.assert_allclose(sig[:200, 1], GM_NEGLIGIBLE_SIGMA, rtol=1e-12)
+    assert gm_sigma_steps((gx,), gyr, t) is None
+    with pytest.raises(ValueError, match="vx_gate"):
+        ekf_v1_consistent(vx_gate=-0.1)
+
+
+def test_gauss_markov_fit_recovers_a_per_yaw_rate_model():
+    """Residuals b(k) = s(k) beta(k) + white, beta a unit AR(1) x sigma, s alternating 20 s at 0.5 rad/s and 20 s at
+    0 (turns and straights): the fit with the scale recovers sigma [m per rad/s], tau and the white part; without
+    the scale it returns the turn-and-straight average; a scale that is zero everywhere is a clear error."""
+    rng = np.random.default_rng(11)
+    dt, tau, sigma, white, n = 0.008, 1.5, 0.01, 0.002, 10000
+    scale = np.where((np.arange(n) * dt // 20.0) % 2 == 0, 0.5, 0.0)
+    series = [scale * _ar1(rng, n, dt, tau, sigma) + white * rng.standard_normal(n) for _ in range(40)]
+    fit = gauss_markov_fit(series, dt, WINDOWS, scale=[scale] * len(series))
+    assert fit.per_yaw_rate and fit.sigma == pytest.approx(sigma, rel=0.15)
+    assert fit.tau == pytest.approx(tau, rel=0.3) and fit.white == pytest.approx(white, rel=0.2)
+    flat = gauss_markov_fit(series, dt, WINDOWS)
+    assert not flat.per_yaw_rate and flat.sigma == pytest.approx(sigma * 0.5 * math.sqrt(np.mean(scale > 0)), rel=0.15)
+    with pytest.raises(ValueError, match="scale is zero"):
+        gauss_markov_fit(series, dt, WINDOWS, scale=[np.zeros(n)] * len(series))
 
 
 def test_encoder_quantisation_from_the_platform_spec():
