@@ -110,16 +110,18 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     quantisation otherwise biased the v_y row by turn and walked the heading off: figure-8 heading error 0.006 ->
     0.0023 rad, seed 0); (9) does not fuse the v_x row in traction transients (``vx_gate``: at the wheel-speed
     steps of the calibration runs the treads slip 0.01-0.03 m/s for a few tenths of a second, an error the
-    traction model and a stationary Gauss-Markov state do not hold; straight-path position RMS of scheme 3
-    0.0059 -> 0.0032 m, circle scheme 1 0.070 -> 0.041 m, 5 seeds); (10) in scheme 3 scales the v_y row's
-    Gauss-Markov std with the 0.5 s mean |yaw rate| (``vy_per_yaw_rate``: the row's error (S_true - S) w_z is nil
-    without turning; straight-path scheme 3 steps in band 24 -> 75 %, circle 58 -> 37 %, analysis runs with the
-    12 calibration runs).  sigma, tau and the white part of each row (from
+    traction model and a stationary Gauss-Markov state do not hold; position RMS without -> with the gate, 5 seeds:
+    straight scheme 3 0.0053 -> 0.0032 m, circle schemes 1-2 0.066 -> 0.041 m); (10) in scheme 3 scales the v_y
+    row's Gauss-Markov std with the 0.5 s mean |yaw rate| (``vy_per_yaw_rate``: the row's error (S_true - S) w_z is
+    nil without turning; steps in band constant sigma -> per yaw rate: straight 23 -> 75 %, but circle 63 -> 37 %,
+    where the sigma identified on the calibration runs' turns, up to 0.9 m/s, over-covers the steady circle's).
+    sigma, tau and the white part of each row (from
     moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
     white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
     sensor (:func:`identify_yi_noise`; the reproduction uses six seeds each of the dedicated runs
-    scenarios/yi_calib.toml and yi_calib_steps.toml), whose velocity has its Savitzky-Golay smoothing error at command changes predicted from
-    the gyro and encoders and removed (:func:`reference_smoothing_bias`: 0.023 -> 0.011 m/s RMS along the heading
+    scenarios/yi_calib.toml and yi_calib_steps.toml), whose velocity has its Savitzky-Golay smoothing error at
+    command changes predicted from the gyro and encoders and removed (:func:`reference_smoothing_bias`: 0.023 ->
+    0.011 m/s RMS along the heading
     on the step run, where the position noise accounts for 0.009; without it the v_x row's white part came out
     0.018 m/s against the truth's 0.010-0.011) and whose lateral noise includes the smoothed reference yaw's
     (:func:`reference_velocity_noise_mean_var`).  Earlier versions, measured and replaced (see the nees note for their numbers): white R
@@ -1034,8 +1036,9 @@ def _no_slip_speed(enc: np.ndarray, r: float) -> np.ndarray:
 
 def trailing_mean(enc: np.ndarray, t: np.ndarray, seconds: float) -> np.ndarray:
     """(n, m) trailing (causal) mean of the columns (the encoder speeds; also used for IMU channels) over the last
-    ``seconds`` s of samples (NaN samples skipped; NaN until a finite one).  A wheel speed is a count difference over one sample, so its quantisation
-    error telescopes in the mean: over N samples it is (u_N - u_0)/N (see :func:`encoder_quantisation`)."""
+    ``seconds`` s of samples (NaN samples skipped; NaN until a finite one).  A wheel speed is a count difference
+    over one sample, so its quantisation error telescopes in the mean: over N samples it is (u_N - u_0)/N (see
+    :func:`encoder_quantisation`)."""
     n_win = max(1, int(round(seconds / float(np.median(np.diff(t)))))) if t.size > 1 and seconds > 0 else 1
     if n_win == 1:
         return np.array(enc, float, copy=True)
@@ -1579,8 +1582,9 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
        reports every pass, the last relative change and whether it converged.
     0. With ``model.traction_slip`` (slip as a state only): the traction slip of the v_x row (:class:`TractionSlip`)
        is fitted first (:func:`fit_traction_slip`, no-slip row r (w_L + w_R)/2 minus the reference v_x on the
-       moving steps after ``settle`` outside the traction transients) and subtracted from the row in step 2 (``vx_offset``), so that the
-       Gauss-Markov state carries only the rest of the row's error.  With ``model.icr_correction`` (scheme 3, slip
+       moving steps after ``settle`` outside the traction transients) and subtracted from the row in step 2
+       (``vx_offset``), so that the Gauss-Markov state carries only the rest of the row's error.  With
+       ``model.icr_correction`` (scheme 3, slip
        state): pass 0 fuses the uncorrected v_y row (15); the S correction (:class:`IcrCorrection`) is fitted on its
        residual against the reference on the moving steps (:func:`fit_icr_correction`; the row (15) with the slip
        as a state depends on the encoders and the gyro only) and subtracted from it before that pass's Gauss-Markov
@@ -1811,7 +1815,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     gamma_smoothing: float = 0.1  # [s] scheme 3: trailing mean of the encoder speeds in gamma (40) and the S correction
     quantisation_states: bool = False  # the v_x row's encoder quantisation as states (run_filter_gm enc_quant)
     vx_gate: float = 0.5  # [m/s^2] the v_x row is not fused in traction transients (traction_transient); 0: always
-    vy_per_yaw_rate: bool = True  # scheme 3: the v_y row's Gauss-Markov std proportional to the turning (yaw_rate_scale)
+    vy_per_yaw_rate: bool = True  # scheme 3: the v_y row's Gauss-Markov std proportional to |w_z| (yaw_rate_scale)
     traction_slip: bool = True  # the v_x row's traction slip (TractionSlip) identified and subtracted (slip state only)
     traction: TractionSlip | None = None
     icr_correction: bool = True  # scheme 3: the S correction of (15) (IcrCorrection) identified and subtracted

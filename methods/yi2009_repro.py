@@ -1266,8 +1266,10 @@ def nees(ctx: Any) -> dict[str, float]:
         cal = ", ".join(f"{sid} " + "/".join(f"{out[f'calib.{sid}.v{v}.nees']:.2f}" for v in VARIANTS)
                         for sid in dict.fromkeys(sid for sid, _ in SETTINGS.nees_calibration))
         txt += (f". On the calibration runs themselves (truth, in-sample diagnostic) the mean NEES of schemes 1/2/3 is "
-                f"{cal} (consistent: 2): one stationary noise model per row is identified over both calibration runs "
-                "(gradual and step commands, several speeds and curvatures), and the slip error of the scored paths' "
+                f"{cal} (consistent: 2): one noise model per row is identified over all the calibration runs "
+                "(gradual and step commands, several speeds and curvatures; the v_x row's Gauss-Markov sigma "
+                "constant, the v_y row's " + ("proportional to the yaw rate" if out.get("noise.v3.vy.per_yaw_rate")
+                                              else "constant") + "), and the slip error of the scored paths' "
                 "steady manoeuvres is smaller than that set's. ")
     common = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.seed_corr"] >= 0.3]
     if common:
