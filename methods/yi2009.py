@@ -785,15 +785,15 @@ def yaw_rate_scale(gyr: np.ndarray, t: np.ndarray) -> np.ndarray:
     return trailing_mean(np.abs(gyr[:, 2:3]), t, YAW_RATE_SCALE_SECONDS)[:, 0]
 
 
-def gm_sigma_steps(gms: Sequence[GaussMarkov], gyr: np.ndarray, t: np.ndarray) -> np.ndarray | None:
+def gm_sigma_steps(gms: Sequence[GaussMarkov], s: np.ndarray) -> np.ndarray | None:
     """(n, len(gms)) stationary std per step of the Gauss-Markov row errors (``gm_sigma`` of :func:`run_filter_gm`):
-    sigma, or sqrt((sigma s_k)^2 + GM_NEGLIGIBLE_SIGMA^2) for a ``per_yaw_rate`` one (s_k :func:`yaw_rate_scale`;
-    the floor keeps the state's variance > 0 at s = 0).  None when none is ``per_yaw_rate`` (constant sigmas)."""
+    sigma, or sqrt((sigma s_k)^2 + GM_NEGLIGIBLE_SIGMA^2) for a ``per_yaw_rate`` one (``s`` (n,), the
+    :func:`yaw_rate_scale`; the floor keeps the state's variance > 0 at s = 0).  None when none is ``per_yaw_rate``
+    (constant sigmas)."""
     if not any(g.per_yaw_rate for g in gms):
         return None
-    s = yaw_rate_scale(gyr, t)
     return np.column_stack([np.sqrt(np.square(g.sigma * s) + GM_NEGLIGIBLE_SIGMA**2) if g.per_yaw_rate
-                            else np.full(t.size, g.sigma) for g in gms])
+                            else np.full(s.size, g.sigma) for g in gms])
 
 
 def _window_means(res: Sequence[np.ndarray], window: int, min_fraction: float = 1.0,
@@ -1168,14 +1168,6 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             raise ValueError(f"run_filter_gm: enc_gamma needs scheme 3 (got {variant}), slip_rows='state' (got "
                              f"{slip_rows!r}) and shape ({n}, 2) (got {enc_gamma.shape})")
     encg_l = enc_gamma.tolist() if enc_gamma is not None else None
-    gms_l = None
-    if gm_sigma is not None and gm_x is not None:
-        gm_sigma = np.asarray(gm_sigma, float)
-        nb_ = 2 if variant == 3 else 1
-        if gm_sigma.shape != (n, nb_) or not (np.isfinite(gm_sigma).all() and (gm_sigma > 0).all()):
-            raise ValueError(f"run_filter_gm: gm_sigma needs shape ({n}, {nb_}) of finite values > 0 (got shape "
-                             f"{gm_sigma.shape})")
-        gms_l = (gm_sigma**2).tolist()
     if vx_skip is not None and np.shape(vx_skip) != (n,):
         raise ValueError(f"run_filter_gm: vx_skip needs shape ({n},) (got {np.shape(vx_skip)})")
     skip_l = np.zeros(n, bool).tolist() if vx_skip is None else np.asarray(vx_skip, bool).tolist()
@@ -1188,6 +1180,13 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     use_slip, use_vy = variant >= 2, variant == 3
     gms = () if gm_x is None else (gm_x, gm_y) if use_vy else (gm_x,)
     nb = len(gms)
+    gms_l = None
+    if gm_sigma is not None and nb:
+        gm_sigma = np.asarray(gm_sigma, float)
+        if gm_sigma.shape != (n, nb) or not (np.isfinite(gm_sigma).all() and (gm_sigma > 0).all()):
+            raise ValueError(f"run_filter_gm: gm_sigma needs shape ({n}, {nb}) of finite values > 0 (got shape "
+                             f"{gm_sigma.shape})")
+        gms_l = (gm_sigma**2).tolist()
     nq = 2 if enc_quant > 0 else 0  # quantisation residuals (previous, current) of the v_x row
     nx = 9 + nb + nq
     iqc, iqu = 9 + nb, 10 + nb
@@ -1544,6 +1543,7 @@ class _CalibrationRun(NamedTuple):
     mask: np.ndarray  # encoders finite, after the settle time, inside the reference
     moving: np.ndarray  # mask and a wheel turning
     opts: dict[str, Any]  # the model's run_filter_gm options
+    yaw_scale: np.ndarray  # yaw_rate_scale of the run (per_yaw_rate Gauss-Markov errors)
     x0: np.ndarray  # initial state and covariance of the consistent filter (_initial_state_consistent)
     p0: np.ndarray
 
@@ -1632,7 +1632,7 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                                    reference_velocity_noise_mean_var(run, dt_run),
                                    reference_velocity_noise_mean_var(run, dt_run, speed_ms=speed_ms), m,
                                    m & _moving(enc, r, model.params.min_wheel_speed),
-                                   model.filter_options(run, t, acc, enc),
+                                   model.filter_options(run, t, acc, enc), yaw_rate_scale(gyr, t),
                                    x0, p0))
     dt = float(np.median([c.dt for c in cal]))
     info["reference_bias_rms"] = np.sqrt(np.mean(np.square(np.vstack(ref_bias)), axis=0)).tolist()
@@ -1662,7 +1662,7 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                                          variant=model.variant, s_gamma=model.s_gamma, params=params, x0=c.x0,
                                          p0=c.p0, gm_x=gm_x, gm_y=gm_y, where=c.run.where, vx_offset=off,
                                          vy_offset=offsets_y[i],
-                                         gm_sigma=gm_sigma_steps(_row_gms(gm_x, gm_y, model.variant), c.gyr, c.t),
+                                         gm_sigma=gm_sigma_steps(_row_gms(gm_x, gm_y, model.variant), c.yaw_scale),
                                          **c.opts)
             y_x, y_y = fused[:, 0], fused[:, 1]
             res_x.append(np.where(c.mask & np.isfinite(y_x), np.where(c.moving, y_x - c.vx, 0.0), np.nan))
@@ -1686,7 +1686,7 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
             floor_y = (float(np.sqrt(np.nanmean(gain_all**2))) * params.gyro_noise
                        if np.isfinite(gain_all).any() else 0.0)
             info["vy_white_floor"] = floor_y
-            scale = [yaw_rate_scale(c.gyr, c.t) for c in cal] if getattr(model, "vy_per_yaw_rate", False) else None
+            scale = [c.yaw_scale for c in cal] if getattr(model, "vy_per_yaw_rate", False) else None
             new_y = gauss_markov_fit(res_y, dt, windows, known_y, floor_y, scale=scale)
         change = max(_rel_change(new_x, gm_x), _rel_change(new_y, gm_y))
         gm_x, gm_y = new_x, new_y
@@ -1893,7 +1893,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
                                      s_gamma=self.s_gamma, params=self.params, x0=x0, p0=p0, gm_x=self.gm_x,
                                      gm_y=self.gm_y, store_cov=self.store_covariance, where=run.where,
                                      vx_offset=vx_offset, vy_offset=vy_offset,
-                                     gm_sigma=gm_sigma_steps(_row_gms(self.gm_x, self.gm_y, self.variant), gyr, t),
+                                     gm_sigma=gm_sigma_steps(_row_gms(self.gm_x, self.gm_y, self.variant),
+                                                             yaw_rate_scale(gyr, t)),
                                      store_lin=self.store_linearisation, **opts)
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]

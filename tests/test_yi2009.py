@@ -1131,13 +1131,13 @@ def test_gm_sigma_steps_scales_with_the_trailing_yaw_rate():
     gyr = np.zeros((n, 3))
     gyr[200:, 2] = -0.4
     gx, gy = GaussMarkov(0.002, 1.0, 0.01), GaussMarkov(0.003, 2.0, 1e-4, per_yaw_rate=True)
-    sig = gm_sigma_steps((gx, gy), gyr, t)
+    sig = gm_sigma_steps((gx, gy), yaw_rate_scale(gyr, t))
     w = int(round(YAW_RATE_SCALE_SECONDS / dt))
     np.testing.assert_allclose(yaw_rate_scale(gyr, t)[200 + w:], 0.4, rtol=1e-12)
     assert np.all(sig[:, 0] == 0.002)
     np.testing.assert_allclose(sig[200 + w:, 1], math.hypot(0.003 * 0.4, GM_NEGLIGIBLE_SIGMA), rtol=1e-12)
     np.testing.assert_allclose(sig[:200, 1], GM_NEGLIGIBLE_SIGMA, rtol=1e-12)
-    assert gm_sigma_steps((gx,), gyr, t) is None
+    assert gm_sigma_steps((gx,), yaw_rate_scale(gyr, t)) is None
     with pytest.raises(ValueError, match="vx_gate"):
         ekf_v1_consistent(vx_gate=-0.1)
 
