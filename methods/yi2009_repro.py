@@ -792,6 +792,7 @@ NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
     "imu_forward": ({"imu_mean": False}, (1, 2, 3)),
     "no_gamma_smoothing": ({"gamma_smoothing": 0.0}, (3,)),
     "no_vx_gate": ({"vx_gate": 0.0}, (1, 2, 3)),
+    "no_vy_gate": ({"vy_gate": False}, (3,)),
     "constant_vy_sigma": ({"vy_per_yaw_rate": False}, (3,)),
 }
 _NEES_KEY = "_yi2009_nees"
@@ -1131,8 +1132,9 @@ def nees(ctx: Any) -> dict[str, float]:
                   "S(gamma) error in the Gauss-Markov state); imu_forward: the IMU sample held over the next step "
                   "(Yi's forward Euler) instead of the trapezoidal rule; no_gamma_smoothing: scheme 3's gamma (40) "
                   "and S correction from the step's encoder pair instead of their 0.1 s trailing mean; no_vx_gate: "
-                  "the v_x row fused in traction transients too; constant_vy_sigma: scheme 3's v_y row error with a "
-                  "constant Gauss-Markov sigma instead of one proportional to the 0.5 s mean |yaw rate|. "
+                  "the v_x (and scheme 3's v_y) row fused in traction transients too; no_vy_gate: scheme 3's v_y row "
+                  "fused in traction transients (the v_x row still gated); constant_vy_sigma: scheme 3's v_y row "
+                  "error with a constant Gauss-Markov sigma instead of one proportional to the 0.5 s mean |yaw rate|. "
                   "Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
         for c in ["consistent"] + abl:

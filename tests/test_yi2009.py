@@ -1092,6 +1092,48 @@ def test_gm_filter_with_a_per_step_sigma_and_skipped_rows_equals_filterpy():
         run_filter_gm(t, acc, gyr, enc, vx_skip=skip[:-1], **kw)
 
 
+def test_scheme3_skipped_vy_rows_equal_filterpy():
+    """Scheme 3 in the level-rest linear case with the v_y row (15) skipped on steps 80-139 (``vy_skip``) and the v_x
+    row on steps 100-119: FilterPy's KalmanFilter (second implementation) with b_y as an 11th state (a_y, Q_by) and,
+    per step, the rows that are fused (v_x = V_x + b_x, v_y = V_y + b_y, v_z = V_z at zero attitude).  Covariances
+    agree at every step; b_y keeps its propagation while its row is off; vy_skip needs scheme 3."""
+    from filterpy.kalman import KalmanFilter
+
+    t, acc, gyr, enc, p, x0, p0 = _level_rest()
+    n, dt = t.size, float(t[1] - t[0])
+    gx, gy = GaussMarkov(0.01, 0.7, 0.012), GaussMarkov(0.004, 0.4, 0.002)
+    skip_x = (np.arange(n) >= 100) & (np.arange(n) < 120)
+    skip_y = (np.arange(n) >= 80) & (np.arange(n) < 140)
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, variant=3, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=gx, gm_y=gy, store_cov=True, slip_rows="state")
+    res, _, rows = run_filter_gm(t, acc, gyr, enc, vx_skip=skip_x, vy_skip=skip_y, **kw)
+    assert np.isnan(rows[skip_y, 1]).all() and np.isfinite(rows[1:][~skip_y[1:], 1]).all()
+    assert res.n_updates[:2] == (n - 1 - int(skip_x.sum()), n - 1 - int(skip_y.sum()))
+    ax_, ay_ = math.exp(-dt / gx.tau), math.exp(-dt / gy.tau)
+    kf = KalmanFilter(dim_x=11, dim_z=3)
+    F = np.eye(11)
+    F[0, 3] = F[1, 4] = F[2, 5] = dt
+    F[3, 7], F[4, 6], F[9, 9], F[10, 10] = dt * G, -dt * G, ax_, ay_
+    kf.F = F
+    kf.Q = np.diag([p.pos_noise**2] * 3 + [(p.accel_noise * dt) ** 2] * 3 + [(p.gyro_noise * dt) ** 2] * 3
+                   + [gx.sigma**2 * (1 - ax_ * ax_), gy.sigma**2 * (1 - ay_ * ay_)])
+    h_all = np.zeros((3, 11))
+    h_all[0, 3] = h_all[0, 9] = h_all[1, 4] = h_all[1, 10] = h_all[2, 5] = 1.0
+    r_all = np.array([gx.white**2, gy.white**2, p.sigma_vz**2])
+    kf.P = np.diag(list(np.diag(p0)) + [gx.sigma**2, gy.sigma**2])
+    kf.x = np.zeros(11)
+    for k in range(1, n):
+        kf.predict()
+        use = [i for i, off in enumerate((skip_x[k], skip_y[k], False)) if not off]
+        kf.update(np.zeros(len(use)), R=np.diag(r_all[use]), H=h_all[use])
+        assert np.allclose(res.cov[k], kf.P, rtol=1e-8, atol=1e-14), k
+    assert res.cov[139][10, 10] > res.cov[79][10, 10]  # b_y unobserved while its row is off
+    with pytest.raises(ValueError, match="vy_skip needs scheme 3"):
+        run_filter_gm(t, acc, gyr, enc, **{**kw, "variant": 1, "gm_y": None}, vy_skip=skip_y)
+    with pytest.raises(ValueError, match="vy_skip needs scheme 3"):
+        run_filter_gm(t, acc, gyr, enc, vy_skip=skip_y[:-1], **kw)
+
+
 def test_skipped_row_makes_the_previous_quantisation_residual_fresh():
     """With quantisation states, a step whose v_x row is skipped leaves the next row's u_(k-1) a fresh residual:
     variance enc_quant^2, uncorrelated with every other state (the count residual of a sample no row has used)."""
