@@ -45,7 +45,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from bench.run import Run, RunError
+from bench.run import Run, RunError, sensor_spec, sensor_spec_value
 
 IMU_CHANNELS = ("imu_ax", "imu_ay", "imu_az", "imu_gx", "imu_gy", "imu_gz")
 ENCODER_CHANNELS = ("enc_wl", "enc_wr")
@@ -103,11 +103,11 @@ def gnss_outage(run: Run, t0: float, t1: float, channels: Sequence[str] = GNSS_C
 def imu_saturation(run: Run) -> tuple[float, float]:
     """(accelerometer, gyro) saturation [m/s^2, rad/s] of the run's platform (``meta.platform.
     sensors.imu.saturation_accel/_gyro``); a missing or non-positive value is a RunError."""
-    imu = ((run.meta.get("platform") or {}).get("sensors") or {}).get("imu") or {}
     out = []
     for key in ("saturation_accel", "saturation_gyro"):
-        v = imu.get(key)
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+        v = sensor_spec_value(run, "imu", key)
+        if v is None or v <= 0:
+            v = sensor_spec(run, "imu", key)
             raise RunError(run.where, f"meta.platform.sensors.imu.{key}", v, "expected a positive number (IMU saturation)")
         out.append(float(v))
     return out[0], out[1]

@@ -192,14 +192,42 @@ def wrap_angle(a: np.ndarray | float) -> np.ndarray | float:
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
+def sensor_spec(run: Run, sensor: str, key: str) -> Any:
+    """``meta.platform.sensors.<sensor>.<key>`` of a run as stored (None when the platform, the sensor or the key
+    is absent); for error messages that name the value found."""
+    plat = run.meta.get("platform")
+    sensors = plat.get("sensors") if isinstance(plat, Mapping) else None
+    spec = sensors.get(sensor) if isinstance(sensors, Mapping) else None
+    return spec.get(key) if isinstance(spec, Mapping) else None
+
+
+def sensor_spec_value(run: Run, sensor: str, key: str) -> float | None:
+    """:func:`sensor_spec` as a float; None when absent or not a finite number (a bool is not a number here).
+    Callers judge the sign."""
+    v = sensor_spec(run, sensor, key)
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+        return None
+    return float(v)
+
+
+def encoder_count_speed(run: Run) -> float | None:
+    """One encoder count per sample as a wheel speed [rad/s]: 2 pi / counts_per_rev x rate_hz
+    (``meta.platform.sensors.encoder``), the quantum of a count-difference speed; None when either value is
+    absent or not > 0."""
+    cpr, rate = sensor_spec_value(run, "encoder", "counts_per_rev"), sensor_spec_value(run, "encoder", "rate_hz")
+    if cpr is None or rate is None or cpr <= 0 or rate <= 0:
+        return None
+    return 2.0 * math.pi * rate / cpr
+
+
 def reference_position_noise(run: Run) -> float:
     """Standard deviation [m] of the run's reference-sensor position (``meta.platform.sensors.reference.
     pos_noise``), which noise identifications subtract from their residuals.  A run without it (e.g. an
     imported log whose mapping gives none) is an error, not a silently perfect reference."""
-    ref = run.meta.get("platform", {}).get("sensors", {}).get("reference")
-    sig = ref.get("pos_noise") if isinstance(ref, Mapping) else None
-    if not isinstance(sig, (int, float)) or isinstance(sig, bool) or not math.isfinite(sig) or sig < 0:
-        raise RunError(run.where, "meta platform.sensors.reference.pos_noise", sig,
+    sig = sensor_spec_value(run, "reference", "pos_noise")
+    if sig is None or sig < 0:
+        raise RunError(run.where, "meta platform.sensors.reference.pos_noise",
+                       sensor_spec(run, "reference", "pos_noise"),
                        "the reference sensor's position noise [m] (finite, >= 0) is needed to identify noise "
                        "against it; give it in the platform spec or the import mapping")
     return float(sig)

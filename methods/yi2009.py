@@ -114,7 +114,8 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     5 seeds: straight scheme 3 0.0053 -> 0.0032 m, circle schemes 1-2 0.066 -> 0.041 m; the no_vx_gate ablation of
     the nees table has the current gate's) and, in scheme 3, not the v_y row either (``vy_gate``: fused in a start
     from rest it tilted the unlevelled attitude and the tilt's gravity held the speed back; circle scheme 3 position
-    RMS 0.0057 -> 0.0037 m, 5 seeds, analysis run); (10) in scheme 3 scales the v_y
+    RMS 0.0057 -> 0.0037 m, straight 0.0031 -> 0.0034 m, 5 seeds, the no_vy_gate ablation); (10) in scheme 3 scales
+    the v_y
     row's Gauss-Markov std with the 0.5 s mean |yaw rate| (``vy_per_yaw_rate``: the row's error (S_true - S) w_z is
     nil without turning; steps in band constant sigma -> per yaw rate, gate 0.5: straight 23 -> 75 %, but circle 63 -> 37 %,
     where the sigma identified on the calibration runs' turns, up to 0.9 m/s, over-covers the steady circle's).
@@ -191,7 +192,8 @@ from scipy.signal import savgol_filter
 
 from bench.consistency import Linearisation
 from bench.registry import Estimate, make_estimate
-from bench.run import Run, RunError, reference_position_noise
+from bench.run import (Run, RunError, encoder_count_speed, reference_position_noise, sensor_spec,
+                       sensor_spec_value)
 
 PAPER = "Yi et al. 2009, IEEE T-RO 25(5):1087-1097"
 IMU_CHANNELS = ("imu_ax", "imu_ay", "imu_az", "imu_gx", "imu_gy", "imu_gz")
@@ -733,9 +735,7 @@ def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, 
     if speed_ms > 0:
         from scipy.signal import savgol_coeffs
 
-        ref = run.meta.get("platform", {}).get("sensors", {}).get("reference", {})
-        yaw_noise = ref.get("yaw_noise", 0.0) if isinstance(ref, Mapping) else 0.0
-        yaw_noise = float(yaw_noise) if isinstance(yaw_noise, (int, float)) and math.isfinite(yaw_noise) else 0.0
+        yaw_noise = sensor_spec_value(run, "reference", "yaw_noise") or 0.0
         ac_ref = ac_ref + speed_ms * yaw_noise**2 * _coef_autocovariance(savgol_coeffs(win, polyorder, use="dot"))
 
     def mean_var(w: int) -> float:
@@ -1487,12 +1487,8 @@ def static_imu_noise(runs: Sequence[Run], min_samples: int = 50, guard: float = 
 def _encoder_speed_quantum(run: Run) -> float | None:
     """r q rate_hz [m/s] with q = 2 pi / counts_per_rev (``meta.platform.sensors.encoder``): one count per
     sample as a tread speed; None when the spec lacks either value."""
-    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-    spec = spec if isinstance(spec, Mapping) else {}
-    cpr, rate = spec.get("counts_per_rev"), spec.get("rate_hz")
-    if not all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in (cpr, rate)):
-        return None
-    return _geometry(run)[0] * 2.0 * math.pi * float(rate) / float(cpr)
+    quantum = encoder_count_speed(run)
+    return None if quantum is None else _geometry(run)[0] * quantum
 
 
 def encoder_white_floor(run: Run) -> tuple[float, str]:
@@ -1500,10 +1496,9 @@ def encoder_white_floor(run: Run) -> tuple[float, str]:
     q = 2 pi rate / counts_per_rev (``meta.platform.sensors.encoder``), each wheel speed a difference of two
     uniformly quantised counts (sd q / sqrt(6)), averaged over the two wheels: r q / sqrt(12).  An explicit
     ``encoder.noise`` [rad/s] in the meta takes precedence (r noise / sqrt(2)); (0, "none") when neither exists."""
-    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-    noise = spec.get("noise") if isinstance(spec, Mapping) else None
-    if isinstance(noise, (int, float)) and math.isfinite(noise) and noise > 0:
-        return _geometry(run)[0] * float(noise) / math.sqrt(2.0), "encoder noise spec"
+    noise = sensor_spec_value(run, "encoder", "noise")
+    if noise is not None and noise > 0:
+        return _geometry(run)[0] * noise / math.sqrt(2.0), "encoder noise spec"
     quantum = _encoder_speed_quantum(run)
     return (0.0, "none") if quantum is None else (quantum / math.sqrt(12.0), "encoder quantisation")
 
@@ -1515,8 +1510,7 @@ def encoder_quantisation(run: Run) -> float:
     gives u with sd r q rate / sqrt(24) (``meta.platform.sensors.encoder``).  RunError when the spec is absent."""
     quantum = _encoder_speed_quantum(run)
     if quantum is None:
-        spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-        got = {k: spec.get(k) for k in ("counts_per_rev", "rate_hz")} if isinstance(spec, Mapping) else spec
+        got = {k: sensor_spec(run, "encoder", k) for k in ("counts_per_rev", "rate_hz")}
         raise RunError(run.where, "meta platform.sensors.encoder", got,
                        "the encoder quantisation states need counts_per_rev and rate_hz (> 0)")
     return quantum / math.sqrt(24.0)

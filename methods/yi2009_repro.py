@@ -1187,7 +1187,8 @@ def nees(ctx: Any) -> dict[str, float]:
            "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; in scheme 3 "
            "the S correction (c_0 + c_1 v |w_z|) w_z subtracted from the v_y row; Gauss-Markov v_y row error"
            + (" with its std proportional to the 0.5 s mean |yaw rate|" if out.get("noise.v3.vy.per_yaw_rate") else "")
-           + "; the v_x row not fused in traction transients (0.1 s mean |f_x| above a gate, and 0.3 s after); "
+           + "; the v_x row (and scheme 3's v_y row) not fused in traction transients (0.1 s mean |f_x| above a "
+             "gate, and 0.3 s after); "
            "roll Jacobian at the modelled v_By in schemes 1-2; trapezoidal IMU integration; in scheme 3 gamma (40) "
            "from a 0.1 s trailing mean of the wheel speeds; the reference's smoothing error at command changes "
            "removed in the identification; "

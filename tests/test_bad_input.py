@@ -449,3 +449,38 @@ def test_noise_identification_needs_the_reference_noise_in_the_meta() -> None:
     assert "platform.sensors.reference.pos_noise" in str(ei.value) and "imported" in str(ei.value)
     ok = from_arrays({"t": np.arange(3) * 0.1}, {"platform": {"sensors": {"reference": {"pos_noise": 0.003}}}})
     assert reference_position_noise(ok) == 0.003
+
+
+@pytest.mark.parametrize("meta, expect", [
+    ({}, None),  # no platform
+    ({"platform": None}, None),  # an imported log's null platform
+    ({"platform": {"sensors": None}}, None),
+    ({"platform": {"sensors": {"encoder": {"counts_per_rev": 2000}}}}, None),  # rate absent
+    ({"platform": {"sensors": {"encoder": {"counts_per_rev": 2000, "rate_hz": float("nan")}}}}, None),
+    ({"platform": {"sensors": {"encoder": {"counts_per_rev": True, "rate_hz": 100.0}}}}, None),  # a bool
+    ({"platform": {"sensors": {"encoder": {"counts_per_rev": 0, "rate_hz": 100.0}}}}, None),
+    ({"platform": {"sensors": {"encoder": {"counts_per_rev": 2000, "rate_hz": 100.0}}}}, 2 * math.pi * 100 / 2000),
+])
+def test_encoder_count_speed_reads_the_spec_or_gives_none(meta: dict, expect: float | None) -> None:
+    """One count per sample as a wheel speed, 2 pi rate / counts_per_rev (closed form: 0.3142 rad/s at 2000
+    counts/rev and 100 Hz), read by Yi's quantisation floor and Yu's start-at-rest test alike; an absent, null,
+    non-finite, boolean or non-positive value gives None instead of an AttributeError deep in a method."""
+    from bench.run import encoder_count_speed
+
+    run = from_arrays({"t": np.arange(3) * 0.1}, meta)
+    got = encoder_count_speed(run)
+    assert got == expect if expect is None else got == pytest.approx(expect, rel=1e-15)
+
+
+def test_bad_spec_values_are_named_with_the_value_found() -> None:
+    """The reference noise and IMU saturation readers name the key and the value they found (a string, a negative
+    number), not a None from the conversion."""
+    from bench.faults import imu_saturation
+    from bench.run import reference_position_noise
+
+    run = from_arrays({"t": np.arange(3) * 0.1}, {"run_id": "imported", "platform": {"sensors": {
+        "reference": {"pos_noise": "3 mm"}, "imu": {"saturation_accel": -1.0, "saturation_gyro": 8.0}}}})
+    with pytest.raises(RunError, match=r"pos_noise.*3 mm"):
+        reference_position_noise(run)
+    with pytest.raises(RunError, match=r"saturation_accel.*-1\.0"):
+        imu_saturation(run)

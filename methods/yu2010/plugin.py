@@ -22,7 +22,7 @@ import numpy as np
 
 from bench.kinematics import integrate_se2
 from bench.registry import Estimate, make_estimate
-from bench.run import Run, RunError
+from bench.run import Run, RunError, encoder_count_speed
 from methods.yu2010.identification import alpha_from_yaw_rate, identify_from_speeds, rolling_from_straight
 from methods.yu2010.params import YuParams
 from methods.yu2010.resistance import ResistanceTable
@@ -107,10 +107,8 @@ def initial_wheel_speeds(run: Run, window: float = 0.05) -> tuple[float, float]:
     wr = _first_sample(run, "enc_wr", t0 + window, after=t0)
     if wl is None or wr is None:
         return 0.0, 0.0
-    spec = run.meta.get("platform", {}).get("sensors", {}).get("encoder", {})
-    cpr, rate = (spec.get("counts_per_rev"), spec.get("rate_hz")) if isinstance(spec, Mapping) else (None, None)
-    if all(isinstance(v, (int, float)) and np.isfinite(v) and v > 0 for v in (cpr, rate)):
-        one_count = 2.0 * np.pi / float(cpr) * float(rate)
+    one_count = encoder_count_speed(run)
+    if one_count is not None:
         wl, wr = (0.0 if abs(w) <= one_count * (1.0 + 1e-9) else w for w in (wl, wr))
     return float(wl), float(wr)
 
