@@ -20,7 +20,7 @@ from bench.sim.commands import wheel_reference
 from bench.sim.testbed import GRAVITY, PhysicsTrace, run_physics
 from bench.spec import Scenario, to_dict
 
-TESTBED_VERSION = "2"  # bump when the physics changes: part of the run-cache key
+TESTBED_VERSION = "3"  # bump when the physics or the truth and sensor synthesis change (recorded in each run)
 
 
 def scenario_hash(scn: Scenario) -> str:
@@ -39,7 +39,11 @@ def pose_time_aligned(tr: PhysicsTrace) -> dict[str, np.ndarray]:
     t_(k+1).  Taken at face value the chassis rates lag the pose by dt/2 (the integrated gyro then lags the
     yaw by w dt/2: 2 mrad at 0.5 rad/s and dt = 1/120 s) and the wheel angles lead it by dt.  Here each
     rate is the mean of its two step means around t_k and each wheel angle the one at t_k (exact for the
-    piecewise-constant step velocities), so that integrating the logged rates gives the logged pose.
+    piecewise-constant step velocities), so that integrating the logged rates gives the logged pose.  Row 0 has
+    no step before it: its rate is the initial one, v[0] (the state at t_0; 0 for a run from rest), not the mean
+    0.5 (v[0] + v[1]), which put half of the first step's velocity at t_0 of a run at rest (0.024 m/s on
+    yi_circle) where the IMU's specific force, the gradient of these velocities, never saw it (a strapdown
+    integral of the IMU then lagged the truth speed by 0.02 m/s for the whole run; testbed version 2).
     Returns the columns vx, vy, vz, wx, wy, wz, wl, wr, th_l, th_r."""
     t = tr["t"]
     dt = float(t[1] - t[0]) if t.size > 1 else 0.0
@@ -47,6 +51,7 @@ def pose_time_aligned(tr: PhysicsTrace) -> dict[str, np.ndarray]:
     for c in ("vx", "vy", "vz", "wx", "wy", "wz"):  # step means over [t_(k-1), t_k] -> value at t_k
         v = tr[c]
         out[c] = 0.5 * (v + np.concatenate((v[1:], v[-1:])))
+        out[c][:1] = v[:1]  # the initial state at t_0 (no step before it)
     for s in ("l", "r"):  # step means over [t_k, t_(k+1)] -> value at t_k; angle at t_(k+1) -> at t_k
         w = tr[f"w{s}"]
         out[f"w{s}"] = 0.5 * (w + np.concatenate((w[:1], w[:-1])))
