@@ -1792,10 +1792,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       -0.015 rad within 0.05 s, and through the bilinear attitude terms of H and F the pitch followed to -0.057 rad
       at 0.2 s, whose gravity, g sin(theta) = 0.55 m/s^2, held the speed 0.2 m/s below the truth until the v_x row
       resumed (position error 0.07 m at 0.5 s).  With the v_y row gated too the pitch stays within 0.0004 rad of
-      the truth; what is left at the start is the testbed's: the IMU's specific force misses the first physics
-      step's velocity (the truth body speed at t = 0 reads 0.024 m/s on the circle at rest, half the first step's
-      velocity, see ``bench.sim.pose_time_aligned``), so the strapdown speed lags 0.02 m/s until the v_x row resumes
-      (0.005-0.009 m of position);
+      the truth.  What was left at the start was the testbed's (version 2): the IMU's specific force missed half
+      of the first physics step's velocity (0.024 m/s on the circle), so the strapdown speed lagged 0.02 m/s until
+      the v_x row resumed (0.005-0.009 m of position); mended in testbed version 3 (``bench.sim.pose_time_aligned``);
     * ``vy_per_yaw_rate`` (scheme 3): the v_y row's Gauss-Markov std is sigma x the 0.5 s trailing mean of |w_z|
       (:attr:`GaussMarkov.per_yaw_rate`, :func:`gm_sigma_steps`) instead of constant: the row (15) is -S psi_dot, so
       its error (S_true - S) w_z vanishes where the robot does not turn (measured on the straight path: 0 against
