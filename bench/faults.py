@@ -106,10 +106,10 @@ def imu_saturation(run: Run) -> tuple[float, float]:
     out = []
     for key in ("saturation_accel", "saturation_gyro"):
         v = sensor_spec_value(run, "imu", key)
-        if v is None or v <= 0:
-            v = sensor_spec(run, "imu", key)
-            raise RunError(run.where, f"meta.platform.sensors.imu.{key}", v, "expected a positive number (IMU saturation)")
-        out.append(float(v))
+        if v is None or v <= 0:  # the error names the value as stored
+            raise RunError(run.where, f"meta.platform.sensors.imu.{key}", sensor_spec(run, "imu", key),
+                           "expected a positive number (IMU saturation)")
+        out.append(v)
     return out[0], out[1]
 
 

@@ -113,16 +113,15 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     traction model and a stationary Gauss-Markov state do not hold; position RMS without -> with a 0.5 m/s^2 gate,
     5 seeds: straight scheme 3 0.0053 -> 0.0032 m, circle schemes 1-2 0.066 -> 0.041 m; the no_vx_gate ablation of
     the nees table has the current gate's) and, in scheme 3, not the v_y row either (``vy_gate``: fused in a start
-    from rest it tilted the unlevelled attitude and the tilt's gravity held the speed back; circle scheme 3 position
-    RMS 0.0057 -> 0.0037 m, straight 0.0031 -> 0.0034 m, 5 seeds, the no_vy_gate ablation); (10) in scheme 3 scales
-    the v_y
-    row's Gauss-Markov std with the 0.5 s mean |yaw rate| (``vy_per_yaw_rate``: the row's error (S_true - S) w_z is
-    nil without turning; steps in band constant sigma -> per yaw rate, gate 0.5: straight 23 -> 75 %, but circle 63 -> 37 %,
-    where the sigma identified on the calibration runs' turns, up to 0.9 m/s, over-covers the steady circle's).
-    sigma, tau and the white part of each row (from
-    moving-mean variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU
-    white noise (Q) and the levelling precision (P0) are identified on calibration runs against the reference
-    sensor (:func:`identify_yi_noise`; the reproduction uses six seeds each of the dedicated runs
+    from rest it tilted the unlevelled attitude and the tilt's gravity held the speed back; scheme 3 position RMS
+    without -> with the v_y gate, 5 seeds, testbed version 3 (the no_vy_gate ablation): circle 0.0051 -> 0.0034 m,
+    straight 0.0030 -> 0.0033 m); (10) in scheme 3 scales the v_y row's Gauss-Markov std with the 0.5 s mean |yaw rate|
+    (``vy_per_yaw_rate``: the row's error (S_true - S) w_z is nil without turning; steps in band constant sigma -> per
+    yaw rate, gate 0.5: straight 23 -> 75 %, but circle 63 -> 37 %, where the sigma identified on the calibration runs'
+    turns, up to 0.9 m/s, over-covers the steady circle's). sigma, tau and the white part of each row (from moving-mean
+    variances over 2-16 s with the reference's and the quantisation's known shares subtracted), the IMU white noise (Q)
+    and the levelling precision (P0) are identified on calibration runs against the reference sensor
+    (:func:`identify_yi_noise`; the reproduction uses six seeds each of the dedicated runs
     scenarios/yi_calib.toml and yi_calib_steps.toml), whose velocity has its Savitzky-Golay smoothing error at
     command changes predicted from the gyro and encoders and removed (:func:`reference_smoothing_bias`: 0.023 ->
     0.011 m/s RMS along the heading
