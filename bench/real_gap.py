@@ -52,7 +52,7 @@ import numpy as np
 from bench.drive import DriveWindows, import_drive_windows, resolve_platform, windows_to_runs
 from bench.gap import GapResult, Thresholds, find_gap
 from bench.gap.catalogue import CATALOGUE, Effect, ModelConfig, get, nominal_config
-from bench.gap.report import uncertainty_text
+from bench.gap.report import STDERR_NOTE, uncertainty_text
 from bench.gap.fit import Evaluator
 from bench.gap.model import measured_grid, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
@@ -381,8 +381,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool) -> str:
         add("")
     if not wf["effects"] and not wf["partial_candidates"]:
         add("No effect was kept.\n")
-    add("Standard errors: from the Jacobian at the fit, scaled by the reduced chi-square (bench.gap.fit); the "
-        "residuals are autocorrelated, so they are optimistic; the fold estimates are beside them.\n")
+    add(f"{STDERR_NOTE}\n")
     for r in wf["candidates"]:
         add(f"Round {r['round']} ({'accepted' if r['accepted'] else 'rejected'}: {r['reason']}); refined candidates:\n")
         add("| model | cost | 2-fold held-out cost |")

@@ -17,6 +17,13 @@ if TYPE_CHECKING:  # pragma: no cover
     from bench.gap import GapResult
 
 
+STDERR_NOTE = ("Std. error (bench.gap.fit): the larger of the classical one (Jacobian at the fit, residuals taken as "
+               "white) and a delete-one-block jackknife over the 2 s time blocks of the folds (keeps the residuals' "
+               "correlation in time), plus the optimiser's resolution on the simulated cost's jitter (contacts make "
+               "the cost jump between nearby parameters; a parameter whose smooth cost is within the jitter's sd "
+               "of the minimum is not told apart). The two fold estimates are beside it.")
+
+
 def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
     """The std. error cell: "not identified" when the data do not determine the parameter (infinite
     standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
@@ -72,6 +79,8 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
                 ov = ", ".join(f"`{kk}={_f(vv, 5)}`" for kk, vv in e["overrides"].items())
                 L.append(f"| {e['name']} | {k} [{unit}] | {_f(v, 5)} | {uncertainty_text(e['name'], k, v, e['uncertainty'][k])} | "
                          f"{_f(e['nominal'].get(k))} | {folds} | {ov} |")
+        L.append("")
+        L.append(STDERR_NOTE)
         L.append("")
         for e in rows:
             L.append(f"- **{e['name']}** ({e['title']}): {e['meaning']}")

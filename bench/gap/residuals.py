@@ -125,6 +125,7 @@ class ResidualSpace:
     regime: Mapping[str, np.ndarray]  # regime index of each sample
     regime_names: tuple[str, ...]
     missing: tuple[str, ...]
+    block: float = 2.0  # [s] length of the time blocks of the folds and of the jackknife (bench.gap.fit)
 
     @property
     def j_noise(self) -> float:
@@ -209,6 +210,10 @@ class ResidualSpace:
     def row_fold(self) -> np.ndarray:
         return np.concatenate([self.fold[c] for c in self.channels])
 
+    def row_block(self) -> np.ndarray:
+        """Index of the ``block``-s time block of each row of :meth:`zvec` (the folds alternate these blocks)."""
+        return np.concatenate([np.floor(self.t[c] / self.block).astype(int) for c in self.channels])
+
     def row_scale(self) -> np.ndarray:
         """Factor from a weighted row of :meth:`zvec` back to its unit-variance residual."""
         return np.concatenate([np.full(self.meas[c].size, np.sqrt(self.meas[c].size / self.weight[c]))
@@ -238,7 +243,7 @@ def build_space(run: Run, regimes_fn, block: float = 2.0, channels: tuple[str, .
     fold = {c: (np.floor(t[c] / block).astype(int) % 2) for c in chans}
     names, label_fn = regimes_fn(run)
     reg = {c: label_fn(t[c]) for c in chans}
-    return ResidualSpace(chans, t, vals, sh, sig, w, fold, reg, tuple(names), missing)
+    return ResidualSpace(chans, t, vals, sh, sig, w, fold, reg, tuple(names), missing, block)
 
 
 def gap_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:
