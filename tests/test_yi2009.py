@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 import pytest
 from scipy import stats
 from scipy.spatial.transform import Rotation
@@ -132,7 +133,7 @@ def synthetic_run(kind: str, seed: int = 0, sensors: Sensors = TESTBED, knots_rp
     q = 2 * math.pi / sensors.counts_per_rev
 
     def encoder(w: np.ndarray) -> np.ndarray:  # count differences per sample
-        angle = np.concatenate(([0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(t))))
+        angle = cumulative_trapezoid(w, t, initial=0.0)
         return np.concatenate(([0.0], np.diff(np.floor(angle / q)) * q * sensors.rate_hz))
 
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -121,7 +121,6 @@ class ResidualSpace:
     sigma_hat: Mapping[str, float]
     sigma: Mapping[str, float]
     weight: Mapping[str, float]
-    fold: Mapping[str, np.ndarray]  # 0/1 fold of each sample (alternating time blocks)
     regime: Mapping[str, np.ndarray]  # regime index of each sample
     regime_names: tuple[str, ...]
     missing: tuple[str, ...]
@@ -208,7 +207,8 @@ class ResidualSpace:
         return np.concatenate([np.full(self.meas[c].size, i) for i, c in enumerate(self.channels)])
 
     def row_fold(self) -> np.ndarray:
-        return np.concatenate([self.fold[c] for c in self.channels])
+        """0/1 fold of each row of :meth:`zvec`: the ``block``-s time blocks alternate."""
+        return self.row_block() % 2
 
     def row_block(self) -> np.ndarray:
         """Index of the ``block``-s time block of each row of :meth:`zvec` (the folds alternate these blocks)."""
@@ -240,10 +240,9 @@ def build_space(run: Run, regimes_fn, block: float = 2.0, channels: tuple[str, .
     sh = {c: noise_scale(vals[c]) for c in chans}
     sig = {c: max(sh[c], FLOORS[c]) for c in chans}
     w = {c: CHANNELS[c][1] for c in chans}
-    fold = {c: (np.floor(t[c] / block).astype(int) % 2) for c in chans}
     names, label_fn = regimes_fn(run)
     reg = {c: label_fn(t[c]) for c in chans}
-    return ResidualSpace(chans, t, vals, sh, sig, w, fold, reg, tuple(names), missing, block)
+    return ResidualSpace(chans, t, vals, sh, sig, w, reg, tuple(names), missing, block)
 
 
 def gap_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:
