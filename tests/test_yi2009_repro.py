@@ -396,15 +396,21 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
     """The nees_consistent note's explanations are gated on each cell's own numbers: a cell with its seed-averaged
     NEES above the band at most steps and its slip at the clip 90 % of the time gets the clip sentence with its
     numbers, the same cell at 10 % does not; a cell mostly below the band is classified by its per-step fractions
-    even when its time mean lies inside the band (one huge outlier step)."""
+    even when its time mean lies inside the band (one huge outlier step).  The slow-slip and adaptive_r sentences
+    follow their metrics: "exceeds" only when the Gauss-Markov sigma exceeds every path's slow slip, "falls more than
+    the claim" only when the error's ratio is below the claim's in every cell, the stall clause only on a path
+    without high-frequency row error whose matched R is within 3x the per-step process noise; without the ablation
+    (quick mode) no adaptive_r sentence."""
     from types import SimpleNamespace
 
     lo, hi = Y.nees_band(2, 2)
     T = 100
     cells = [(k, c, v) for k in Y.PATHS for c in Y.NEES_CONFIGS for v in (1, 2, 3)]
 
-    def ne(clip: float) -> dict:
-        series = {key: np.full((2, T), 2.0) for key in cells}
+    abl = [(k, "ablation_adaptive_r", v) for k in Y.PATHS for v in (1, 2, 3)]
+
+    def ne(clip: float, sigma: float = 0.05, extra: bool = False, err_abl: float = 0.002) -> dict:
+        series = {key: np.full((2, T), 2.0) for key in cells + (abl if extra else [])}
         series[("straight", "consistent", 2)] = np.full((2, T), 10 * hi)  # above at every step
         low = np.full((2, T), 0.5 * lo)
         low[:, 0] = 2.0 * T  # time mean inside the band, yet 99 % of the steps below it
@@ -412,15 +418,23 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         d = dict(clip_frac=0.0, first_clip_s=math.nan, roll_err=1e-3, roll_sd=1e-3)
         diag = {key: [dict(d), dict(d)] for key in cells}
         diag[("straight", "consistent", 2)] = [dict(d, clip_frac=clip, first_clip_s=1.5)] * 2
-        gm = dict(sigma=0.05, tau=2.0, white=0.01, white_floored=False)
+        gm = dict(sigma=sigma, tau=2.0, white=0.01, white_floored=False)
         noise = {v: dict(accel_noise=0.05, gyro_noise=0.005, p0_rollpitch=1e-3, iterations=3, last_change=0.01,
                          converged=True, imu_noise_source="rest", vx=gm, vy=gm if v == 3 else None) for v in (1, 2, 3)}
         per_seed = {key: [np.full((T, 4), 0.01), np.full((T, 4), 0.01)] for key in cells}
+        if extra:  # (err along, across, claimed sd along, across): the error 0.01 -> err_abl, the claim 0.01 -> 0.005
+            per_seed.update({key: [np.tile([err_abl, 0.01, 0.005, 0.01], (T, 1))] * 2 for key in abl})
         calib_nees = {(sid, v): dict(nees=2.0, err_along=0.01, sd_along=0.01, err_across=0.01, sd_across=0.01)
                       for sid, _ in Y.SETTINGS.nees_calibration for v in (1, 2, 3)}
-        return dict(series=series, rms={key: [0.1, 0.1] for key in cells}, diag=diag, noise=noise,
-                    axes=per_seed,
-                    calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"])
+        out = dict(series=series, rms={key: [0.1, 0.1] for key in cells + abl}, diag=diag, noise=noise,
+                   axes=per_seed,
+                   calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"],
+                   row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4, "yi_calib": 7e-4},
+                   row_hf={"straight": 0.0, "circle": 0.006, "figure8": 0.01})
+        if extra:
+            out["r_adapt"] = {("straight", "ablation_adaptive_r", 1): 6e-4, ("circle", "ablation_adaptive_r", 1): 3e-3,
+                              ("figure8", "ablation_adaptive_r", 1): 9e-4, ("imu_dt", "", 0): 0.008}
+        return out
 
     for clip, expect in ((0.9, True), (0.1, False)):
         notes: dict[str, str] = {}
@@ -435,3 +449,48 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         # identical errors in both seeds: correlation 1, N_eff 1, named for the failing cells only
         assert m["circle.consistent.v1.seed_corr"] == pytest.approx(1.0) and m["circle.consistent.v1.n_eff"] == 1.0
         assert "circle 1 1.00 (N_eff 1)" in txt and "figure8 1 1.00" not in txt
+        assert "sigma (0.05 m/s, the slip left after the traction model over gradual and step commands) exceeds" in txt
+        assert "straight 0.0001, circle 0.0003, figure8 0.0004 m/s; calibration runs yi_calib 0.0007 m/s" in txt
+        assert "adaptive_r" not in txt  # quick mode: no ablation
+    notes = {}
+    for sigma, err_abl, more in ((1e-4, 0.002, True), (0.05, 0.008, False)):
+        ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, sigma, True, err_abl), "seeds": [0, 1]}, quick=True,
+                              out_dir=tmp_path, note=notes.__setitem__)
+        Y.nees(ctx)
+        txt = notes["nees_consistent"]
+        assert ("0.0001 m/s, the slip left after the traction model over gradual and step commands) is to be "
+                "compared with" in txt) is (sigma < 4e-4)
+        assert ("the along-track error falls more than the claim (error / claimed sd [m/s], constant R -> matched R: "
+                f"circle 1 0.01 / 0.01 -> {err_abl:.2g} / 0.005" in txt) is more
+        assert ("the along-track error and the claim change" in txt) is not more
+        # straight: no high-frequency error, 6e-4 < 3 x 0.05 x 0.008; figure8: 9e-4 but row_hf 0.01; circle: 3e-3
+        assert "settles at 0.0006 m/s (straight), 0.003 m/s (circle), 0.0009 m/s (figure8)" in txt
+        assert "is 0.0004 m/s): where the row has no high-frequency error (straight) the matched R stalls" in txt
+        assert "last 2 s of rows" in (tmp_path / "nees_consistency.md").read_text()
+
+
+def test_row_slip_error_is_the_slow_row_error_after_the_traction_model():
+    """row_slip_error: on closed-form runs with a constant net slip lam0 (tests.test_yi2009's synthetic model, testbed
+    encoder quantisation and IMU noise) the no-slip row r (w_L + w_R)/2 exceeds v_x by lam0 r (w_L + w_R)/2, so the
+    RMS of its 1 s means is that (the quantisation telescopes within a window); a traction model whose c_w |w_z|
+    equals it on the circle removes it; windows at rest or in traction transients are left out."""
+    from methods.yi2009 import TractionSlip, Yi2009EkfConsistent
+    from tests.test_yi2009 import R_WHEEL, RPM_TO_RADS, Sensors, synthetic_run
+
+    lam0 = 0.04
+    model = Yi2009EkfConsistent(variant=1)
+    straight = synthetic_run("straight", 2, Sensors(lam0=lam0))
+    assert Y.row_slip_error(straight, model) == pytest.approx(lam0 * R_WHEEL * 30 * RPM_TO_RADS, rel=0.02)
+    circle = synthetic_run("circle", 2, Sensors(lam0=lam0))
+    want = lam0 * R_WHEEL * 60 * RPM_TO_RADS
+    assert Y.row_slip_error(circle, model) == pytest.approx(want, rel=0.02)
+    w_z = float(np.mean(np.abs(circle["imu_gz"][circle.t > 5.0])))
+    exact = dataclasses.replace(model, traction=TractionSlip(c_f=0.0, c_w=want / w_z))
+    assert Y.row_slip_error(circle, exact) < 0.05 * want
+    # a stop for 10 s (braked from and restarted to 30 rpm in 0.05 s: traction transients): the windows at rest or
+    # around the transients do not count, so the RMS stays the moving slip (with the rest counted it would fall to
+    # sqrt(2/3) of it); a run that never moves has no qualifying window
+    stop = [(0, 0, 0), (1, 30, 30), (10, 30, 30), (10.05, 0, 0), (20, 0, 0), (20.05, 30, 30), (31, 30, 30)]
+    stopping = synthetic_run("straight", 2, Sensors(lam0=lam0), knots_rpm=stop)
+    assert Y.row_slip_error(stopping, model) == pytest.approx(lam0 * R_WHEEL * 30 * RPM_TO_RADS, rel=0.02)
+    assert math.isnan(Y.row_slip_error(synthetic_run("straight", 2, knots_rpm=[(0, 0, 0), (10, 0, 0)]), model))

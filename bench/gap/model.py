@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from bench.run import Run, RunError
 from bench.spec import CommandSpec, Scenario, Segment, replace
@@ -241,8 +242,8 @@ def plugin_trace(method: Any, run: Run) -> dict[str, np.ndarray]:
 
     vx, vy, yaw = col("vx"), col("vy"), col("yaw")
     c, s = np.cos(yaw), np.sin(yaw)
-    th_l = np.concatenate(([0.0], np.cumsum(0.5 * (col("wl")[1:] + col("wl")[:-1]) * np.diff(t))))
-    th_r = np.concatenate(([0.0], np.cumsum(0.5 * (col("wr")[1:] + col("wr")[:-1]) * np.diff(t))))
+    th_l = cumulative_trapezoid(col("wl"), t, initial=0.0)
+    th_r = cumulative_trapezoid(col("wr"), t, initial=0.0)
     return {
         "t": t, "x": col("x"), "y": col("y"), "yaw": np.unwrap(yaw) if np.isfinite(yaw).all() else yaw,
         "vcom_x": c * vx - s * vy, "vcom_y": s * vx + c * vy, "wz": col("wz"), "fx_b": nan, "fy_b": nan,

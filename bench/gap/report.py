@@ -20,8 +20,9 @@ if TYPE_CHECKING:  # pragma: no cover
 STDERR_NOTE = ("Std. error (bench.gap.fit): the larger of the classical one (Jacobian at the fit, residuals taken as "
                "white) and a delete-one-block jackknife over the 2 s time blocks of the folds (keeps the residuals' "
                "correlation in time), plus the optimiser's resolution on the simulated cost's jitter (contacts make "
-               "the cost jump between nearby parameters; a parameter whose smooth cost is within the jitter's sd "
-               "of the minimum is not told apart). The two fold estimates are beside it.")
+               "the cost jump between nearby parameters; a parameter whose smooth cost is within the jitter's RMS "
+               "of the minimum is not told apart); an actuator delay, found on the grid of physics steps, adds the "
+               "step dt/sqrt(12) in quadrature. The two fold estimates are beside it.")
 
 
 def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
