@@ -5,6 +5,7 @@ Registered into :data:`bench.cli.COMMANDS` on import.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -14,6 +15,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench.cli import _progress, command
+from bench.report.io import atomic_write_text
 
 
 # ------------------------------------------------------------------------------------------ reproduce
@@ -45,6 +47,39 @@ def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
     data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
     key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id)
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
+
+
+def _file_state(results_dir: Path) -> dict[str, int]:
+    """mtime (ns) of every file under ``results_dir`` by its relative path (what an extra rewrites: atomic writes give
+    each written file a new mtime even when its content is unchanged)."""
+    root = Path(results_dir)
+    if not root.is_dir():
+        return {}
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _extra_outputs(results_dir: Path, before: Mapping[str, int]) -> dict[str, str]:
+    """{relative path: sha256} of the files under ``results_dir`` written since the ``before`` state."""
+    after = _file_state(results_dir)
+    return {rel: _sha256(Path(results_dir) / rel) for rel, mt in sorted(after.items()) if before.get(rel) != mt}
+
+
+def _extra_kept(marker: Path, results_dir: Path) -> bool:
+    """True when the extra's marker exists and every file it recorded is in ``results_dir`` with the recorded
+    content: the marker alone (keyed on the code, data and output folder) does not show that the folder still holds
+    that run's output (a folder reset by git or edited by hand keeps the marker valid but not the files)."""
+    if not marker.is_file():
+        return False
+    try:
+        outputs = json.loads(marker.read_text())["outputs"]
+    except (ValueError, KeyError, TypeError):
+        return False  # a marker of the earlier format (no record of the files): recompute
+    return all((Path(results_dir) / rel).is_file() and _sha256(Path(results_dir) / rel) == digest
+               for rel, digest in outputs.items())
 
 
 def _remove_stale_temp_files(results_dir: Path) -> None:
@@ -82,13 +117,14 @@ def _reproduce(a: argparse.Namespace) -> int:
                         results_dir=results_dir, log=log, progress=progress)
         for name in extras:
             marker = _extra_marker(name, results_dir, a.quick)
-            if marker.is_file():
+            if _extra_kept(marker, results_dir):
                 log(f"{name}: unchanged since the last run, results kept")
                 continue
             log(f"extra: {name}")
+            before = _file_state(results_dir)
             EXTRAS[name](results_dir, a.quick, workers=a.workers)
             marker.parent.mkdir(parents=True, exist_ok=True)
-            marker.write_text("done\n")
+            atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before)}, indent=1) + "\n")
     R.link_extras(Path(results_dir), a.quick)
     print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
     return 0

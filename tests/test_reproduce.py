@@ -243,3 +243,45 @@ def test_report_links_the_extras_that_exist_and_a_rerun_replaces_the_section(tmp
     second = rep.read_text()
     assert second.count("Beyond the papers") == 1 and "[stress.md](stress.md)" in second
     assert second.replace("- [stress.md](stress.md): " + dict(R.EXTRA_RESULTS)["stress.md"] + "\n", "") == first
+
+
+def test_extra_is_kept_only_while_the_results_folder_holds_its_output(tmp_path, monkeypatch):
+    """`reproduce <extra>` skips an extra whose marker (code, data, output folder) exists only while the folder still
+    holds the files that run wrote, with their content: a file reset (e.g. `git checkout results`), deleted, or a
+    marker of the earlier format without the record recomputes it; an unchanged folder keeps it."""
+    import argparse
+
+    import bench.cli_more as C
+    import bench.runner
+
+    monkeypatch.setattr(bench.runner, "DEFAULT_CACHE", tmp_path / "cache" / "runs")
+    calls = []
+
+    def fake_extra(results_dir, quick, workers=1):
+        calls.append(1)
+        (results_dir / "fake").mkdir(parents=True, exist_ok=True)
+        (results_dir / "fake" / "out.md").write_text(f"run {len(calls)}\n")
+
+    monkeypatch.setitem(C.EXTRAS, "fake_extra", fake_extra)
+    res = tmp_path / "results"
+    (res / "other").mkdir(parents=True)
+    (res / "other" / "paper.md").write_text("not the extra's\n")
+    args = argparse.Namespace(papers=["fake_extra"], all=False, quick=False, workers=1, dask_scheduler=None,
+                              results=res)
+    out = res / "fake" / "out.md"
+    C._reproduce(args)
+    marker = C._extra_marker("fake_extra", res, False)
+    assert len(calls) == 1 and json.loads(marker.read_text())["outputs"].keys() == {"fake/out.md"}
+    C._reproduce(args)
+    assert len(calls) == 1  # kept
+    out.write_text("an older run\n")  # the folder reset to other content
+    C._reproduce(args)
+    assert len(calls) == 2 and out.read_text() == "run 2\n"
+    out.unlink()
+    C._reproduce(args)
+    assert len(calls) == 3 and out.is_file()
+    marker.write_text("done\n")  # the earlier format
+    C._reproduce(args)
+    assert len(calls) == 4
+    C._reproduce(args)
+    assert len(calls) == 4
