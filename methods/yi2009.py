@@ -181,6 +181,7 @@ Choices the paper leaves open (documented, parameters in :class:`EkfParams`)
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Callable, ClassVar, Mapping, NamedTuple, Sequence
 
@@ -1223,7 +1224,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                          f"{adaptive_floor!r} > 0")
     if adaptive_vx and gm_x is None:
         raise ValueError("run_filter_gm: adaptive_vx needs gm_x (the paper's filter keeps its R)")
-    ad_terms: list[float] = []  # eps^2 + h P+ h^T of the last fused v_x rows
+    ad_terms: deque[float] = deque(maxlen=max(adaptive_vx, 1))  # eps^2 + h P+ h^T of the last fused v_x rows
     r_x_cur = r_all[0]
     r_vx = np.full(n, np.nan) if adaptive_vx else None
 
@@ -1414,8 +1415,6 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 h0 = H[0]
                 eps = inn[0] - float(h0 @ kin)
                 ad_terms.append(eps * eps + float(h0 @ P @ h0))
-                if len(ad_terms) > adaptive_vx:
-                    del ad_terms[0]
                 if 4 * len(ad_terms) >= adaptive_vx:
                     r_x_cur = max(adaptive_floor**2, math.fsum(ad_terms) / len(ad_terms))
             px += dx[0]

@@ -907,7 +907,9 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     null: dict[tuple[str, int], list[np.ndarray]] = {}  # consistent cells: simulated NEES (draws, T) per seed
     row_hf: dict[str, list[float]] = {}
     r_adapt: dict[tuple[str, str, int], list[float]] = {}
-    row_slip: dict[str, list[float]] = {}  # per path / calibration scenario: slow v_x row error after traction
+    filter_dt: list[float] = []  # the adaptive filters' step [s]
+    row_slip: dict[str, list[float]] = {}  # per path: slow v_x row error after the traction slip (row_slip_error)
+    calib_row_slip: dict[str, list[float]] = {}  # the same per calibration scenario
     for k in PATHS:
         for s in ev.seeds:
             run = runs[(k, s)]
@@ -925,7 +927,7 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                     rv = est.info["r_vx"][(est["t"] >= NEES_T_MIN) & np.isfinite(est.info["r_vx"])]
                     if rv.size:
                         r_adapt.setdefault((k, cfg_name, v), []).append(float(np.sqrt(np.median(rv))))
-                        r_adapt.setdefault(("imu_dt", "", 0), []).append(float(np.median(np.diff(est["t"]))))
+                        filter_dt.append(float(np.median(np.diff(est["t"]))))
                 series.setdefault((k, cfg_name, v), []).append(velocity_nees_series(run, est))
                 rms.setdefault((k, cfg_name, v), []).append(position_rms(truth, Trajectory.from_estimate(est)))
                 axes.setdefault((k, cfg_name, v), []).append(body_velocity_errors(run, est))
@@ -935,9 +937,8 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     calib_nees: dict[tuple[str, int], dict[str, float]] = {}  # per calibration path: mean NEES, RMS over its seeds
     for sid in dict.fromkeys(sid for sid, _ in cfg.nees_calibration):
         runs_sid = [run for (sid_, _), run in zip(cfg.nees_calibration, calib_runs) if sid_ == sid]
+        calib_row_slip[sid] = [row_slip_error(run, methods[("consistent", 1)]) for run in runs_sid]
         for v in VARIANTS:
-            if v == 1:
-                row_slip[sid] = [row_slip_error(run, methods[("consistent", 1)]) for run in runs_sid]
             ests = [methods[("consistent", v)].estimate(run) for run in runs_sid]
             calib_nees[(sid, v)] = {"nees": float(np.mean([np.mean(velocity_nees_series(run, est))
                                                           for run, est in zip(runs_sid, ests)])),
@@ -946,14 +947,20 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     out = {"series": {key: np.vstack(v) for key, v in series.items()}, "rms": rms, "calib_nees": calib_nees,
            "abs_yaw_rate": {k: float(np.mean(v)) for k, v in yaw_rate.items()},
            "row_hf": {k: float(np.sqrt(np.mean(np.square(v)))) for k, v in row_hf.items()},
-           "row_slip": {k: float(np.sqrt(np.mean(np.square(f)))) for k, v in row_slip.items()
-                        if (f := [x for x in v if math.isfinite(x)])},
+           "row_slip": _finite_rms(row_slip), "calib_row_slip": _finite_rms(calib_row_slip),
            "r_adapt": {k: float(np.mean(v)) for k, v in r_adapt.items()},
+           **({"imu_dt": float(np.mean(filter_dt))} if filter_dt else {}),
            "axes": axes, "diag": diag, "null": null,
            "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods,
            "calibration": [f"{sid} seed {seed}" for sid, seed in cfg.nees_calibration]}
     ctx.info[_NEES_KEY] = out
     return out
+
+
+def _finite_rms(per_key: Mapping[str, Sequence[float]]) -> dict[str, float]:
+    """RMS of each key's finite values (keys without one left out: metrics.json holds no NaN)."""
+    return {k: float(np.sqrt(np.mean(np.square(f)))) for k, v in per_key.items()
+            if (f := [x for x in v if math.isfinite(x)])}
 
 
 def row_high_frequency_error(run: Run, window: float = 0.5, t_min: float = NEES_T_MIN) -> float:
@@ -985,8 +992,7 @@ def row_slip_error(run: Run, model: Yi2009EkfConsistent, window: float = 1.0, t_
     seen = np.isfinite(e)
     bad = seen & ~(_moving(enc, r, model.params.min_wheel_speed) & ~traction_transient(acc, t, model.vx_gate))
     w = max(1, int(round(window / float(np.median(np.diff(t))))))
-    roll = {"window": w, "center": True, "min_periods": w}
-    n_bad = pd.Series(bad.astype(float)).rolling(**roll).sum().to_numpy()  # NaN at the ends: no whole window
+    n_bad = pd.Series(bad.astype(float)).rolling(w, center=True, min_periods=w).sum().to_numpy()  # NaN: no whole window
     mm = pd.Series(np.where(seen, e, np.nan)).rolling(w, center=True, min_periods=max(1, w // 2)).mean().to_numpy()
     ok = (n_bad == 0) & np.isfinite(mm) & (t >= t_min)
     return float(np.sqrt(np.mean(mm[ok] ** 2))) if ok.any() else math.nan
@@ -1123,9 +1129,13 @@ def nees(ctx: Any) -> dict[str, float]:
     for k, val in ne.get("row_hf", {}).items():
         out[f"{k}.row_hf"] = val
     for (k, c, v), val in ne.get("r_adapt", {}).items():
-        out["imu_dt" if k == "imu_dt" else f"{k}.{c}.v{v}.r_adapt"] = val
+        out[f"{k}.{c}.v{v}.r_adapt"] = val
+    if "imu_dt" in ne:
+        out["imu_dt"] = ne["imu_dt"]
     for k, val in ne.get("row_slip", {}).items():
-        out[f"{k if k in PATHS else 'calib.' + k}.row_slip"] = val
+        out[f"{k}.row_slip"] = val
+    for sid, val in ne.get("calib_row_slip", {}).items():
+        out[f"calib.{sid}.row_slip"] = val
     for (sid, v), d in ne["calib_nees"].items():
         for key, val in d.items():
             out[f"calib.{sid}.v{v}.{key}"] = val

@@ -429,11 +429,12 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         out = dict(series=series, rms={key: [0.1, 0.1] for key in cells + abl}, diag=diag, noise=noise,
                    axes=per_seed,
                    calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"],
-                   row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4, "yi_calib": 7e-4},
+                   row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4}, calib_row_slip={"yi_calib": 7e-4},
                    row_hf={"straight": 0.0, "circle": 0.006, "figure8": 0.01})
         if extra:
             out["r_adapt"] = {("straight", "ablation_adaptive_r", 1): 6e-4, ("circle", "ablation_adaptive_r", 1): 3e-3,
-                              ("figure8", "ablation_adaptive_r", 1): 9e-4, ("imu_dt", "", 0): 0.008}
+                              ("figure8", "ablation_adaptive_r", 1): 9e-4}
+            out["imu_dt"] = 0.008
         return out
 
     for clip, expect in ((0.9, True), (0.1, False)):
