@@ -495,3 +495,92 @@ def test_row_slip_error_is_the_slow_row_error_after_the_traction_model():
     stopping = synthetic_run("straight", 2, Sensors(lam0=lam0), knots_rpm=stop)
     assert Y.row_slip_error(stopping, model) == pytest.approx(lam0 * R_WHEEL * 30 * RPM_TO_RADS, rel=0.02)
     assert math.isnan(Y.row_slip_error(synthetic_run("straight", 2, knots_rpm=[(0, 0, 0), (10, 0, 0)]), model))
+
+
+def test_told_noise_sets_the_v_x_row_levels_and_nothing_else():
+    """told_noise (the nees table's truth-informed attribution): told the model's own identified levels, the filter is
+    the consistent one, bit for bit (states and covariance); a smaller told white part lowers the claimed along-track
+    sd and a larger one raises it; the levels are floored (state and R > 0); the null test's linearisation is never
+    stored; an uncalibrated model, a negative or NaN level are refused with the offending value."""
+    from methods.yi2009 import ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, GaussMarkov, Yi2009EkfConsistent
+    from tests.test_yi2009 import Sensors, synthetic_run
+
+    run = synthetic_run("straight", 3, Sensors(lam0=0.02))
+    gm = GaussMarkov(sigma=0.003, tau=2.0, white=0.01)
+    model = Yi2009EkfConsistent(variant=1, traction_slip=False, store_covariance=True, store_linearisation=True,
+                                calibrated=True, gm_x=gm)
+    same = Y.told_noise(model, slip=gm.sigma, white=gm.white)
+    assert same.gm_x == gm and not same.store_linearisation and Y.told_noise(model).gm_x == gm
+    ref, got = model.estimate(run), same.estimate(run)
+    assert "lin" in ref.info and "lin" not in got.info
+    assert np.array_equal(ref.info["P"], got.info["P"]) and np.array_equal(ref["x"], got["x"])
+
+    def claimed_along(m: Yi2009EkfConsistent) -> float:
+        return float(np.sqrt(np.mean(Y.body_velocity_errors(run, m.estimate(run))[:, 2] ** 2)))
+
+    base = claimed_along(model)
+    assert claimed_along(Y.told_noise(model, white=gm.white / 4)) < 0.9 * base
+    assert claimed_along(Y.told_noise(model, white=gm.white * 4)) > 1.1 * base
+    for told, want in (({"white": 0.004}, dataclasses.replace(gm, white=0.004, white_floored=False)),
+                       ({"slip": 0.001}, dataclasses.replace(gm, sigma=0.001))):  # one level told: the other kept
+        one = Y.told_noise(model, **told)
+        assert one.gm_x == want and not one.store_linearisation
+    # the copy keeps the calibration guard: registry.estimate refuses its calibration runs as the original does
+    from bench import registry
+    guarded = registry.calibrate(model, [run])
+    assert registry.calibrated_on(Y.told_noise(guarded, white=0.004)) == registry.calibrated_on(guarded) != frozenset()
+    floored = Y.told_noise(model, slip=0.0, white=0.0).gm_x
+    assert (floored.sigma, floored.white, floored.tau) == (GM_NEGLIGIBLE_SIGMA, ADAPTIVE_R_FLOOR, gm.tau)
+    with pytest.raises(ValueError, match="calibrated"):
+        Y.told_noise(Yi2009EkfConsistent(variant=1), slip=1e-3)
+    for bad in (-1e-3, math.nan):
+        with pytest.raises(ValueError, match=f"white = {bad!r}"):
+            Y.told_noise(model, white=bad)
+
+
+def test_told_note_sentence_follows_the_told_cells():
+    """_told_txt: the change of the claimed along-track sd is the range over the cells of told / identified - 1 (one
+    value when both ends round alike); "n of 6 cells pass" counts the told_both cells at >= 90 % in band; a failing
+    cell is named with its side of the band and the axis furthest off (below: the smallest error : sd ratio; above:
+    the largest), and each axis clause only where a named cell shows it; the verdicts on the levels only where a cell
+    failed as identified; nothing without the told cells (quick mode)."""
+    out: dict[str, float] = {}
+    cells = [(k, v) for k in Y.PATHS for v in Y.TOLD_VARIANTS]
+    for k in Y.PATHS:
+        out[f"{k}.told.slip"], out[f"{k}.told.white"] = 1e-4, 1e-3
+    for k, v in cells:
+        for c, sd_along in (("consistent", 2e-3), ("told_slip", 1.9e-3), ("told_white", 1.0e-3), ("told_both", 0.8e-3)):
+            p = f"{k}.{c}.v{v}"
+            out.update({p + ".in_band": 0.95, p + ".below": 0.05, p + ".above": 0.0, p + ".err_along": 1e-3,
+                        p + ".sd_along": sd_along, p + ".err_across": 1e-3, p + ".sd_across": 1e-3})
+    txt = Y._told_txt(out)  # every cell passes, as identified and told: no verdict on the levels
+    assert "by -5% with the slip sigma told and by -50% with the white part told" in txt
+    assert txt.endswith("with both told 6 of 6 cells pass (as identified: 6). ")
+    out["circle.consistent.v3.in_band"] = 0.35
+    out["straight.told_slip.v1.sd_along"] = 2.2e-3  # one cell's claim rises: the range is -5 % to +10 %
+    txt = Y._told_txt(out)
+    assert "changes by -5% to +10% with the slip sigma told and by -50% with the white part told" in txt
+    assert "with both told 6 of 6 cells pass (as identified: 5): the v_x row's noise levels account for" in txt
+    # two told cells fail: one below the band (across over-covered), one above (along under-covered)
+    out.update({"figure8.told_both.v1.in_band": 0.79, "figure8.told_both.v1.below": 0.21,
+                "figure8.told_both.v1.sd_across": 4e-3, "straight.told_both.v3.in_band": 0.02,
+                "straight.told_both.v3.above": 0.98, "straight.told_both.v3.below": 0.0,
+                "straight.told_both.v3.err_along": 4e-3})
+    txt = Y._told_txt(out)
+    assert "with both told 4 of 6 cells pass (as identified: 5)" in txt and "account for" not in txt
+    assert "straight scheme 3 2% of the steps in band, mostly above, along 4 : 0.8 mm/s" in txt
+    assert "figure8 scheme 1 79% of the steps in band, mostly below, across 1 : 4 mm/s" in txt
+    assert "noise levels are not the whole cause" in txt and "the error exceeds the claim" in txt
+    assert "across the track the error is not the v_x row's" in txt and "the claim stays above the error" not in txt
+    # the same failures when every cell passed as identified: no verdict on the levels; an along cell below the band
+    out["circle.consistent.v3.in_band"] = 0.95
+    out.update({"circle.told_both.v1.in_band": 0.5, "circle.told_both.v1.below": 0.5})
+    txt = Y._told_txt(out)
+    assert "as identified: 6" in txt and "not the whole cause" not in txt
+    assert "circle scheme 1 50% of the steps in band, mostly below, along 1 : 0.8 mm/s" not in txt  # err > sd there
+    assert "the claim stays above the error" not in txt
+    out["circle.told_both.v1.err_along"] = 0.2e-3
+    assert "the claim stays above the error" in Y._told_txt(out)
+    del out["figure8.told_both.v3.in_band"]
+    assert Y._told_txt(out) == ""
+    assert Y._told_txt({k: val for k, val in out.items() if ".told." not in k}) == ""
