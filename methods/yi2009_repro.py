@@ -107,9 +107,9 @@ from bench.run import Run, RunError
 from bench.spec import Scenario, load_scenario
 from bench.consistency import NullNees, simulate_nees
 from bench.ukf import NEES_MIN_STEP_FRACTION
-from methods.yi2009 import (ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, PUBLISHED_S_GAMMA, SLIP_CLIP_TOL, EkfParams, Yi2009Ekf, Yi2009EkfConsistent,
-                            _moving, _row_offsets, align_inputs, fit_s_gamma, reference_s_gamma_point,
-                            traction_transient)
+from methods.yi2009 import (ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, PUBLISHED_S_GAMMA, SLIP_CLIP_TOL, EkfParams,
+                            Yi2009Ekf, Yi2009EkfConsistent, _moving, _row_offsets, align_inputs, fit_s_gamma,
+                            reference_s_gamma_point, traction_transient)
 
 __all__ = ["fig3", "fig4", "fig5_6", "fig7", "diagnosis", "nees", "nees_band", "nees_summary",
            "velocity_nees_series", "Settings", "SETTINGS", "mean_ci", "vision_slip",
@@ -1146,7 +1146,8 @@ def _told_txt(out: Mapping[str, float]) -> str:
     metrics it rests on say so; "" when it was not computed (quick mode)."""
     paths = [k for k in PATHS if f"{k}.told.slip" in out]
     cells = [(k, v) for k in paths for v in TOLD_VARIANTS]
-    if not cells or not all(f"{k}.{c}.v{v}.in_band" in out for k, v in cells for c in ("consistent",) + tuple(TOLD_CONFIGS)):
+    configs = ("consistent",) + tuple(TOLD_CONFIGS)
+    if not cells or not all(f"{k}.{c}.v{v}.in_band" in out for k, v in cells for c in configs):
         return ""
 
     def change(c: str) -> tuple[float, float]:  # range of the relative change of the claimed along-track sd
