@@ -6,7 +6,7 @@ A third-party package adds a method by declaring an entry point in that group.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import metadata
 from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 
@@ -74,7 +74,16 @@ def calibrate(method: Method, runs: Sequence[Run]) -> Method:
     for r in runs:
         r.require(method.requires | getattr(method, "calibration_requires", frozenset()), method.name)
     out = method.calibrate([r.without_truth() for r in runs])
-    hashes = calibrated_on(method) | {r.content_hash() for r in runs}
+    return _mark_calibrated(out, calibrated_on(method) | {r.content_hash() for r in runs})
+
+
+def derive(method: Any, **changes: Any) -> Any:
+    """``dataclasses.replace(method, **changes)`` that keeps the calibration runs of ``method``
+    (:func:`calibrated_on`): a copy with other settings is still refused on them by :func:`estimate`."""
+    return _mark_calibrated(replace(method, **changes), calibrated_on(method))
+
+
+def _mark_calibrated(out: Any, hashes: frozenset[str]) -> Any:
     object.__setattr__(out, "_calibration_hashes", frozenset(hashes)) if _frozen(out) else setattr(
         out, "_calibration_hashes", frozenset(hashes)
     )

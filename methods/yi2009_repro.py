@@ -950,17 +950,17 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
             if k not in slip_rms or k not in hf_rms:
                 continue
             told_levels[k] = (slip_rms[k], hf_rms[k])
-            for c, (tell_slip, tell_white) in TOLD_CONFIGS.items():
-                for v in TOLD_VARIANTS:
-                    m = told_noise(methods[("consistent", v)], slip_rms[k] if tell_slip else None,
-                                   hf_rms[k] if tell_white else None)
-                    for s in ev.seeds:
-                        run = runs[(k, s)]
-                        est = registry.estimate(m, run)
-                        series.setdefault((k, c, v), []).append(velocity_nees_series(run, est))
-                        rms.setdefault((k, c, v), []).append(position_rms(Trajectory.from_run(run, "truth"),
-                                                                          Trajectory.from_estimate(est)))
-                        axes.setdefault((k, c, v), []).append(body_velocity_errors(run, est))
+            told = {(c, v): told_noise(methods[("consistent", v)], slip_rms[k] if tell_slip else None,
+                                       hf_rms[k] if tell_white else None)
+                    for c, (tell_slip, tell_white) in TOLD_CONFIGS.items() for v in TOLD_VARIANTS}
+            for s in ev.seeds:
+                run = runs[(k, s)]
+                truth = Trajectory.from_run(run, "truth")
+                for (c, v), m in told.items():
+                    est = registry.estimate(m, run)
+                    series.setdefault((k, c, v), []).append(velocity_nees_series(run, est))
+                    rms.setdefault((k, c, v), []).append(position_rms(truth, Trajectory.from_estimate(est)))
+                    axes.setdefault((k, c, v), []).append(body_velocity_errors(run, est))
     # in-sample diagnostic: the consistent filters on their own calibration runs against the testbed truth (a direct
     # estimate call: registry.estimate refuses a calibration run for scoring, and this is not a score)
     calib_nees: dict[tuple[str, int], dict[str, float]] = {}  # per calibration path: mean NEES, RMS over its seeds
@@ -1002,10 +1002,7 @@ def told_noise(model: Yi2009EkfConsistent, slip: float | None = None, white: flo
         gm = replace(gm, sigma=max(float(slip), GM_NEGLIGIBLE_SIGMA))
     if white is not None:
         gm = replace(gm, white=max(float(white), ADAPTIVE_R_FLOOR), white_floored=False)
-    out = replace(model, gm_x=gm, store_linearisation=False)
-    # the copy keeps the original's calibration runs: registry.estimate still refuses to score it on one of them
-    object.__setattr__(out, "_calibration_hashes", registry.calibrated_on(model))
-    return out
+    return registry.derive(model, gm_x=gm, store_linearisation=False)
 
 
 def _finite_rms(per_key: Mapping[str, Sequence[float]]) -> dict[str, float]:
@@ -1014,19 +1011,25 @@ def _finite_rms(per_key: Mapping[str, Sequence[float]]) -> dict[str, float]:
             if (f := [x for x in v if math.isfinite(x)])}
 
 
+def _vx_row_error(run: Run, model: Yi2009EkfConsistent | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(t, acc, enc, e) on the filter grid (:func:`align_inputs`): e the no-slip v_x row's error against the testbed
+    truth, r (w_L + w_R)/2 - v_x, after ``model``'s traction slip c_f f_x + c_w |w_z| when it has one (NaN where the
+    step has no encoder pair)."""
+    r, _ = _geometry(run)
+    t, acc, gyr, enc = align_inputs(run)
+    e = 0.5 * r * (enc[:, 0] + enc[:, 1]) - np.interp(t, run.t, run["truth_vx"])
+    vx_off = None if model is None else _row_offsets(model.traction, None, acc, gyr, enc, r, model.params)[0]
+    return t, acc, enc, (e if vx_off is None else e - vx_off)
+
+
 def row_high_frequency_error(run: Run, window: float = 0.5, t_min: float = NEES_T_MIN,
                              model: Yi2009EkfConsistent | None = None) -> float:
     """RMS [m/s] of the high-frequency part of the no-slip v_x row's error against the testbed truth, r (w_L + w_R)/2
     - v_x minus its centred ``window``-s moving mean, after ``t_min`` s (diagnostic: the share the row's white R
     stands for, mostly the encoder quantisation).  With ``model``: the row as that model fuses it, after its traction
     slip c_f f_x + c_w |w_z| (which adds the IMU samples' noise)."""
-    r, _ = _geometry(run)
-    t, acc, gyr, enc = align_inputs(run)
-    e = 0.5 * r * (enc[:, 0] + enc[:, 1]) - np.interp(t, run.t, run["truth_vx"])
-    if model is not None:
-        vx_off, _ = _row_offsets(model.traction, None, acc, gyr, enc, r, model.params)
-        if vx_off is not None:
-            e = e - vx_off
+    t, _, _, e = _vx_row_error(run, model)
     e = np.where(np.isfinite(e), e, 0.0)
     w = max(1, int(round(window / float(np.median(np.diff(t))))))
     hf = e - np.convolve(e, np.ones(w) / w, mode="same")
@@ -1040,14 +1043,10 @@ def row_slip_error(run: Run, model: Yi2009EkfConsistent, window: float = 1.0, t_
     without a fresh encoder pair are skipped, at least half the window must have one).  Diagnostic: the slow slip that
     the model's v_x Gauss-Markov state stands for, on a scored path or a calibration run.  NaN when no window
     qualifies."""
-    r, _ = _geometry(run)
-    t, acc, gyr, enc = align_inputs(run)
-    vx_off, _ = _row_offsets(model.traction, None, acc, gyr, enc, r, model.params)
-    e = 0.5 * r * (enc[:, 0] + enc[:, 1]) - np.interp(t, run.t, run["truth_vx"])
-    if vx_off is not None:
-        e = e - vx_off
+    t, acc, enc, e = _vx_row_error(run, model)
     seen = np.isfinite(e)
-    bad = seen & ~(_moving(enc, r, model.params.min_wheel_speed) & ~traction_transient(acc, t, model.vx_gate))
+    bad = seen & ~(_moving(enc, _geometry(run)[0], model.params.min_wheel_speed)
+                   & ~traction_transient(acc, t, model.vx_gate))
     w = max(1, int(round(window / float(np.median(np.diff(t))))))
     n_bad = pd.Series(bad.astype(float)).rolling(w, center=True, min_periods=w).sum().to_numpy()  # NaN: no whole window
     mm = pd.Series(np.where(seen, e, np.nan)).rolling(w, center=True, min_periods=max(1, w // 2)).mean().to_numpy()

@@ -529,6 +529,8 @@ def test_told_noise_sets_the_v_x_row_levels_and_nothing_else():
     from bench import registry
     guarded = registry.calibrate(model, [run])
     assert registry.calibrated_on(Y.told_noise(guarded, white=0.004)) == registry.calibrated_on(guarded) != frozenset()
+    with pytest.raises(registry.CalibrationLeak, match="calibrated on"):
+        registry.estimate(Y.told_noise(guarded, white=0.004), run)
     floored = Y.told_noise(model, slip=0.0, white=0.0).gm_x
     assert (floored.sigma, floored.white, floored.tau) == (GM_NEGLIGIBLE_SIGMA, ADAPTIVE_R_FLOOR, gm.tau)
     with pytest.raises(ValueError, match="calibrated"):
