@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
+from bench.report.io import dumps_json
 from bench.run import RunError
 from bench.spec import SpecError
 
@@ -65,7 +66,7 @@ def _list(a: argparse.Namespace) -> int:
         "methods": methods,
     }
     if a.json:
-        print(json.dumps(out, indent=2))
+        print(dumps_json(out, indent=2))
         return 0
     from rich.console import Console
     from rich.table import Table
@@ -122,7 +123,7 @@ def _validate(a: argparse.Namespace) -> int:
     log = (lambda s: print(s, file=sys.stderr)) if not a.json else (lambda s: None)
     checks = run_checks(progress=log, quick=a.quick)
     if a.json:
-        print(json.dumps({"passed": all(c.passed for c in checks), "checks": [asdict(c) for c in checks]}, indent=1))
+        print(dumps_json({"passed": all(c.passed for c in checks), "checks": [asdict(c) for c in checks]}, indent=1))
     else:
         from rich.console import Console
         from rich.table import Table

@@ -135,19 +135,34 @@ command("reproduce", "regenerate paper tables, figures, REPORT.md and metrics.js
 
 # ------------------------------------------------------------------------------------------ compare
 def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """Metrics of ``base`` that moved beyond their tolerance in ``new`` (or vanished / became NaN)."""
+    """Metrics of ``base`` that moved beyond their tolerance in ``new`` (or vanished / became NaN).
+
+    Values are read with :func:`bench.report.io.json_number`: null is NaN (no value: a NaN baseline
+    has nothing to move from, as before strict JSON), "inf" / "-inf" are infinite (equal only to the
+    same infinity)."""
+    from bench.report.io import json_number
+
     out = []
     bm, nm = base.get("metrics", {}), new.get("metrics", {})
     for mid, b in bm.items():
-        bv = b["value"]
+        bv = json_number(b["value"])
         tol = b.get("tolerance", {})
-        allowed = max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(bv))
+        allowed = max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(bv or 0.0))
         if mid not in nm:
             out.append({"metric": mid, "base": bv, "new": None, "allowed": allowed, "why": "missing in new"})
             continue
-        nv = nm[mid]["value"]
-        if isinstance(nv, float) and math.isnan(nv) and not (isinstance(bv, float) and math.isnan(bv)):
+        nv = json_number(nm[mid]["value"])
+        if bv is None or nv is None:
+            out.append({"metric": mid, "base": b["value"], "new": nm[mid]["value"], "allowed": allowed,
+                        "why": "value is not a number"})
+            continue
+        if math.isnan(nv) and not math.isnan(bv):
             out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed, "why": "became NaN"})
+        elif math.isnan(bv) or math.isnan(nv):
+            continue  # no value before (a NaN baseline has nothing to move from)
+        elif math.isinf(bv) or math.isinf(nv):
+            if nv != bv:
+                out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed, "why": f"changed from {bv} to {nv}"})
         elif abs(nv - bv) > allowed:
             out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
                         "why": f"moved by {nv - bv:+.4g} (allowed ±{allowed:.3g})"})

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import time
@@ -58,6 +57,7 @@ from bench.gap.model import measured_grid, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
 from bench.gap.residuals import CHANNELS, CUMULATIVE_CHANNELS, UNITS, build_space
 from bench.real import _atomic_write_text, _new_figure, _save_figure, split_steps, valid_windows
+from bench.report.io import dumps_json
 from bench.run import Run
 from bench.spec import load_scenario
 
@@ -322,7 +322,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         if figure:
             files.append(_figure(res, held_out, wheel_series(fit_run, scn, res), out_dir / "husky_gap.png"))
         files.append(_atomic_write_text(out_dir / "husky_gap.json",
-                                        json.dumps(_clean(doc), indent=1, sort_keys=True) + "\n"))
+                                        dumps_json(_clean(doc), indent=1, sort_keys=True) + "\n"))
         files.append(_atomic_write_text(out_dir / "husky_gap.md", _markdown(doc, figure)))
         out["files"] = [str(p) for p in files]
     out["runtime_s"] = time.perf_counter() - t0

@@ -53,7 +53,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from bench.report.io import atomic_path, atomic_write_json, atomic_write_text
+from bench.report.io import atomic_path, atomic_write_json, atomic_write_text, dumps_json
 from bench.runner import REPO, Runner
 from bench.spec import SCENARIO_DIR, SpecError
 
@@ -601,4 +601,4 @@ def append_history(results_dir: Path, results: list[PaperResult], quick: bool, s
             pass
     path = results_dir / "history.jsonl"
     old = path.read_text() if path.is_file() else ""
-    atomic_write_text(path, old + json.dumps(entry, sort_keys=True) + "\n")
+    atomic_write_text(path, old + dumps_json(entry, sort_keys=True) + "\n")

@@ -372,6 +372,14 @@ _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
 }
 
 
+def _json_inf(value: Any, tp: Any) -> Any:
+    """A float field's "inf" / "-inf" (strict JSON has no infinity: bench.report.io.json_safe
+    writes it as these strings, e.g. in runs_manifest.json) as the float; any other value as is."""
+    if tp is float and isinstance(value, str) and value.strip().lower() in ("inf", "+inf", "-inf"):
+        return float(value)
+    return value
+
+
 def _type_ok(value: Any, tp: Any) -> bool:
     if tp is float:
         return isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -408,10 +416,12 @@ def _coerce(value: Any, tp: Any, file: Path | str, name: str) -> Any:
             elif typing.get_origin(inner) is tuple:
                 out.append(_coerce(v, inner, file, iname))
             else:
+                v = _json_inf(v, inner if inner is not Ellipsis else float)
                 if not _type_ok(v, inner if inner is not Ellipsis else float):
                     raise SpecError(file, iname, v, f"expected {getattr(inner, '__name__', inner)}")
                 out.append(float(v) if inner is float else v)
         return tuple(out)
+    value = _json_inf(value, tp)
     if not _type_ok(value, tp):
         raise SpecError(file, name, value, f"expected {getattr(tp, '__name__', tp)}")
     if tp is float:

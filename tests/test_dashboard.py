@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from bench.report.dashboard import render_dashboard
+from bench.report.io import dumps_json
 from bench.spec import SpecError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -68,7 +69,8 @@ BASELINE = {"quick": False, "commit": "x", "metrics": {
 
 def _write_results(d: Path, hist: list[dict]) -> Path:
     d.mkdir(parents=True, exist_ok=True)
-    (d / "history.jsonl").write_text("".join(json.dumps(h, sort_keys=True) + "\n" for h in hist))
+    # as bench.reproduce.append_history writes it: strict JSON, a NaN metric as null
+    (d / "history.jsonl").write_text("".join(dumps_json(h, sort_keys=True) + "\n" for h in hist))
     (d / "metrics.json").write_text(json.dumps(BASELINE))
     return d
 

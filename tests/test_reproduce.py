@@ -11,6 +11,7 @@ import pytest
 
 from bench import reproduce as R
 from bench.cli_more import compare_metrics
+from bench.report.io import dumps_json
 from bench.runner import Runner
 from bench.spec import SpecError
 from bench.spec import load_scenario
@@ -170,7 +171,8 @@ def test_manifest_reproduces_in_fresh_processes(paper_dir, tmp_path):
     runner = Runner(cache_dir=tmp_path / "cache")
     R.reproduce_paper("fake", runner, tmp_path / "r")
     man = tmp_path / "manifest.json"
-    man.write_text(json.dumps(runner.manifest))
+    man.write_text(dumps_json(runner.manifest))  # as reproduce writes it: strict JSON, inf as "inf"
+    assert '"command_limit_mean": "inf"' in man.read_text()  # the default platform has no command limit
     for workers in ("1", "2"):
         out = subprocess.run([sys.executable, "-m", "bench.cli", "verify-runs", str(man), "--workers", workers],
                              capture_output=True, text=True)

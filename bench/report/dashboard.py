@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from bench.report.io import atomic_write_text
+from bench.report.io import atomic_write_text, json_number
 from bench.spec import SpecError
 
 __all__ = ["Entry", "Series", "Step", "DashboardPages", "load_history", "load_baselines", "find_steps",
@@ -80,10 +80,14 @@ class Entry:
 
 
 def _num(x: Any) -> float | None:
+    """A JSON value as a float: numbers, bools and the strings "inf" / "-inf" (bench.report.io);
+    None for null and anything else."""
     if isinstance(x, bool):
         return float(x)
     if isinstance(x, (int, float)):
         return float(x)
+    if isinstance(x, str):
+        return json_number(x)
     return None
 
 
@@ -109,7 +113,9 @@ def load_history(path: str | Path) -> list[Entry]:
                 raise SpecError(path, f"line {lineno}: {key}", None, "required field is missing")
         if not isinstance(obj["metrics"], dict):
             raise SpecError(path, f"line {lineno}: metrics", obj["metrics"], "an object {metric id: number}")
-        metrics = {str(k): v for k, v in ((k, _num(v)) for k, v in obj["metrics"].items()) if v is not None}
+        # null is a metric without a value (NaN, as the old writer wrote it): kept, so "became NaN" is seen
+        metrics = {str(k): v for k, v in ((k, math.nan if v is None else _num(v)) for k, v in obj["metrics"].items())
+                   if v is not None}
         bench = {str(k): v for k, v in ((k, _num(v)) for k, v in (obj.get("bench") or {}).items()) if v is not None}
         entries.append(Entry(index=len(entries), commit=str(obj["commit"]), date=str(obj.get("date", "")),
                              quick=bool(obj.get("quick", False)), seconds=_num(obj.get("seconds")),

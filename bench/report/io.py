@@ -1,8 +1,15 @@
 """Atomic file writes: everything under results/ is written to a temp file and renamed, so an
-interrupted run leaves either the old file or the new one, never half of one."""
+interrupted run leaves either the old file or the new one, never half of one.
+
+JSON is written strict (RFC 8259, readable by any JSON parser): a non-finite float is written as
+null (NaN: "no value", e.g. the ICR of a straight line) or as the string "inf" / "-inf";
+:func:`json_number` reads all three back, and :func:`bench.spec.build` accepts the strings in a
+float field (``command_limit_mean = inf``: no limit)."""
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import tempfile
 from contextlib import contextmanager
@@ -34,8 +41,39 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
+def json_safe(obj: Any) -> Any:
+    """``obj`` with every non-finite float inside (dicts, lists, tuples) replaced: NaN -> None,
+    +inf / -inf -> "inf" / "-inf".  Finite values and other objects are returned unchanged."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, numbers.Real) and not isinstance(obj, numbers.Integral) and not math.isfinite(obj):
+        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    return obj
+
+
+def json_number(value: Any) -> float | None:
+    """A number as :func:`dumps_json` wrote it, back as a float: None (null) -> NaN, "inf" / "-inf"
+    -> +-inf, a JSON number (or Python's NaN / Infinity of older files) -> itself.  None if
+    ``value`` is not a number at all (a string other than these, a list, ...)."""
+    if value is None:
+        return math.nan
+    if isinstance(value, str):
+        return {"inf": math.inf, "-inf": -math.inf}.get(value.strip().lower())
+    if isinstance(value, numbers.Real):
+        return float(value)
+    return None
+
+
+def dumps_json(obj: Any, **kw: Any) -> str:
+    """``json.dumps`` of :func:`json_safe` ``(obj)`` with ``allow_nan=False`` (strict JSON) and
+    ``default=str`` (paths, numpy scalars)."""
+    return json.dumps(json_safe(obj), allow_nan=False, default=str, **kw)
+
+
 def atomic_write_json(path: str | Path, obj: Any) -> Path:
-    return atomic_write_text(path, json.dumps(obj, indent=1, sort_keys=True, default=str) + "\n")
+    return atomic_write_text(path, dumps_json(obj, indent=1, sort_keys=True) + "\n")
 
 
 def atomic_savefig(fig: Any, path: str | Path, **kw: Any) -> Path:
