@@ -138,8 +138,9 @@ def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dic
     """Metrics of ``base`` that moved beyond their tolerance in ``new`` (or vanished / became NaN).
 
     Values are read with :func:`bench.report.io.json_number`: null is NaN (no value: a NaN baseline
-    has nothing to move from, as before strict JSON), "inf" / "-inf" are infinite (equal only to the
-    same infinity)."""
+    has nothing to move from), "inf" / "-inf" are infinite and equal only to the same infinity (a
+    change between finite and infinite, either way, is flagged; before strict JSON an infinite
+    baseline had an infinite relative tolerance and was never flagged)."""
     from bench.report.io import json_number
 
     out = []
@@ -149,7 +150,7 @@ def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dic
         tol = b.get("tolerance", {})
         allowed = max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(bv or 0.0))
         if mid not in nm:
-            out.append({"metric": mid, "base": bv, "new": None, "allowed": allowed, "why": "missing in new"})
+            out.append({"metric": mid, "base": b["value"], "new": None, "allowed": allowed, "why": "missing in new"})
             continue
         nv = json_number(nm[mid]["value"])
         if bv is None or nv is None:

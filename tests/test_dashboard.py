@@ -29,6 +29,7 @@ import pytest
 from bench.report.dashboard import render_dashboard
 from bench.report.io import dumps_json
 from bench.spec import SpecError
+from tests.test_strict_json import strict_loads
 
 REPO = Path(__file__).resolve().parents[1]
 N_RUNS = 10
@@ -398,7 +399,7 @@ def test_history_written_by_reproduce_renders(tmp_path, monkeypatch):
     R.reproduce(["fake"], results_dir=res, log=lambda s: None)
     monkeypatch.setenv("SKIDBENCH_BREAK_METHOD", "1")
     R.reproduce(["fake"], results_dir=res, log=lambda s: None)
-    lines = [json.loads(x) for x in (res / "history.jsonl").read_text().splitlines()]
+    lines = [strict_loads(x) for x in (res / "history.jsonl").read_text().splitlines()]
     assert len(lines) == 2
     pages = render_dashboard(res)
     page = _read(res, "fake.html")

@@ -19,6 +19,7 @@ from bench.gap.regimes import regimes_for
 from bench.run import RunError, from_arrays
 from bench.sim.commands import wheel_reference
 from bench.spec import CommandSpec, Segment, load_scenario
+from tests.test_strict_json import strict_loads
 
 SCN = "gap_dev_coulomb"  # development scenario: these tests check mechanics, not thresholds
 REQUIRED = ("rolling_resistance", "friction", "shear_displacement", "wheel_radius", "cg_offset", "payload",
@@ -237,7 +238,7 @@ def test_report_files_and_json_contract(sim, tmp_path):
     measured = sim(SCN, 2, **{"platform__sensors__imu__gyro_bias_z": -0.012})
     res = find_gap(measured, SCN, catalogue=(C.get("gyro_bias"), C.get("rolling_resistance")), workers=1)
     out = write_report(res, tmp_path, hidden={"platform.sensors.imu.gyro_bias_z": -0.012})
-    doc = json.loads(out["json"].read_text())
+    doc = strict_loads(out["json"].read_text())
     for key in ("effects", "gap_before", "gap_after", "verdict"):
         assert key in doc
     e = doc["effects"][0]
@@ -259,7 +260,7 @@ def test_cli_gap_writes_json(sim, tmp_path):
     measured.to_parquet(p)
     out = tmp_path / "gap.json"
     assert main(["gap", "--measured", str(p), "--scenario", SCN, "--json", str(out), "--quiet", "--workers", "1"]) == 0
-    doc = json.loads(out.read_text())
+    doc = strict_loads(out.read_text())
     assert doc["verdict_kind"] == "missing_effect" and doc["effects"][0]["name"] == "rolling_resistance"
     assert doc["effects"][0]["parameters"]["rolling_resistance"] == pytest.approx(0.06, rel=0.05)
 

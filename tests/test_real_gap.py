@@ -20,6 +20,7 @@ from bench.gap.catalogue import get
 from bench.gap import model as gap_model
 from bench.real_gap import CONTINUITY, SCENARIO, GapRunConfig, run_real_gap
 from bench.spec import load_scenario
+from tests.test_strict_json import strict_loads
 from tests.test_drive import N, husky_df, raw  # noqa: F401  (fixture)
 
 SMALL = GapRunConfig(n_fit=1, n_test=2, max_effects=1)
@@ -74,7 +75,7 @@ def test_steps_split_and_files(gap_run: dict, husky_df: pd.DataFrame) -> None:
     assert set(fit) <= set(calib.tolist()) and set(held) <= set(test.tolist())
     names = sorted(p.name for p in gap_run["out"].iterdir())
     assert names == ["husky_gap.json", "husky_gap.md"]
-    disk = json.loads((gap_run["out"] / "husky_gap.json").read_text())
+    disk = strict_loads((gap_run["out"] / "husky_gap.json").read_text())
     assert disk["workflow"]["verdict"] == doc["workflow"]["verdict"] and "runtime_s" not in json.dumps(disk)
     md = (gap_run["out"] / "husky_gap.md").read_text()
     assert doc["workflow"]["verdict"] in md

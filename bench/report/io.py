@@ -55,12 +55,12 @@ def json_safe(obj: Any) -> Any:
 
 def json_number(value: Any) -> float | None:
     """A number as :func:`dumps_json` wrote it, back as a float: None (null) -> NaN, "inf" / "-inf"
-    -> +-inf, a JSON number (or Python's NaN / Infinity of older files) -> itself.  None if
+    (or "+inf") -> +-inf, a JSON number (or Python's NaN / Infinity of older files) -> itself.  None if
     ``value`` is not a number at all (a string other than these, a list, ...)."""
     if value is None:
         return math.nan
     if isinstance(value, str):
-        return {"inf": math.inf, "-inf": -math.inf}.get(value.strip().lower())
+        return {"inf": math.inf, "+inf": math.inf, "-inf": -math.inf}.get(value.strip().lower())
     if isinstance(value, numbers.Real):
         return float(value)
     return None
