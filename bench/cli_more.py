@@ -163,7 +163,8 @@ def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dic
             continue  # no value before (a NaN baseline has nothing to move from)
         elif math.isinf(bv) or math.isinf(nv):
             if nv != bv:
-                out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed, "why": f"changed from {bv} to {nv}"})
+                out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
+                            "why": f"changed from {bv} to {nv}"})
         elif abs(nv - bv) > allowed:
             out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
                         "why": f"moved by {nv - bv:+.4g} (allowed ±{allowed:.3g})"})

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from bench.report.io import INF_STRINGS
+
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
@@ -375,8 +377,8 @@ _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
 def _json_inf(value: Any, tp: Any) -> Any:
     """A float field's "inf" / "-inf" (strict JSON has no infinity: bench.report.io.json_safe
     writes it as these strings, e.g. in runs_manifest.json) as the float; any other value as is."""
-    if tp is float and isinstance(value, str) and value.strip().lower() in ("inf", "+inf", "-inf"):
-        return float(value)
+    if tp is float and isinstance(value, str) and value.strip().lower() in INF_STRINGS:
+        return INF_STRINGS[value.strip().lower()]
     return value
 
 

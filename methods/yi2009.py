@@ -137,10 +137,11 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     in variables) and drifts to about -S; with a causal mean of earlier yaw rates it learns from the gyro noise on
     straight stretches or lags at command steps (overconfident on its calibration runs, mean NEES 11-44; details in
     :class:`Yi2009EkfConsistent`).  Also measured and not kept: the v_x row's white R matched online to the post-fit
-    residuals (``adaptive_white``, an ablation: it lowers the along-track error 7x on the straight line but the claim 2x;
-    even with the slip state's sigma set per path to the truth's slow slip, analysis only, the steps in band stay at
-    41-92 %; the nees table's truth-informed attribution, told each path's slip and white levels, passes 1 of 6 cells
-    of schemes 1 and 3: the levels are not the whole cause).  Also measured and not kept (issue 4 notes, published S(gamma), 5 seeds):
+    residuals (``adaptive_white``, an ablation: it lowers the along-track error 7x on the straight line but the
+    claim 2x; even with the slip state's sigma set per path to the truth's slow slip, analysis only, the steps in band
+    stay at 41-92 %; the nees table's truth-informed attribution, told each path's slip and white levels, passes 1 of
+    6 cells of schemes 1 and 3: the levels are not the whole cause).  Also measured and not kept (issue 4 notes,
+    published S(gamma), 5 seeds):
     a heteroscedastic Gauss-Markov std, sqrt(sigma0^2 + (gain phi)^2) with phi the causal 1 s mean of |f_x| for b_x
     and of |w_z| for b_y (the residual slip after the traction model is 3-6x larger at |f_x| > 0.05 m/s^2 than below
     0.02 on the calibration runs): steps in band schemes 1 / 3 straight 85 / 16 %, circle 79 / 82 %, figure-8 69 /
@@ -1793,8 +1794,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       claim 0.00252 -> 0.00119 (scheme 1); the matched R (median over a run, mean over the seeds) settles at 0.00058 m/s
       on the straight line (about 1.5x the velocity's per-step process noise, 0.0004 m/s, with which it is confounded
       once the encoder error vanishes), 0.0032 on the circle and 0.0086 on the figure-8, where the quantisation varies
-      (the identified white part: 0.0097); steps in band fall (scheme 3 straight 74 -> 17 %, circle 35 -> 7 %).  The slip
-      state's stationary sigma is not what is left of the claim: told each path's slow slip (the nees table's
+      (the identified white part: 0.0097); steps in band fall (scheme 3 straight 74 -> 17 %, circle 35 -> 7 %).  The
+      slip state's stationary sigma is not what is left of the claim: told each path's slow slip (the nees table's
       truth-informed attribution) the claimed along-track sd falls only 3-6 %;
     * ``traction_slip`` (slip state only): the traction slip c_f f_x + c_w |w_z| (:class:`TractionSlip`) identified
       on the calibration runs and subtracted from the v_x row, so that the Gauss-Markov state carries only the rest;

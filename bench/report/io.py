@@ -41,6 +41,10 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return Path(path)
 
 
+# the JSON spellings of an infinite float (json_safe writes the first and the last; bench.spec reads them all)
+INF_STRINGS = {"inf": math.inf, "+inf": math.inf, "-inf": -math.inf}
+
+
 def json_safe(obj: Any) -> Any:
     """``obj`` with every non-finite float inside (dicts, lists, tuples) replaced: NaN -> None,
     +inf / -inf -> "inf" / "-inf".  Finite values and other objects are returned unchanged."""
@@ -60,7 +64,7 @@ def json_number(value: Any) -> float | None:
     if value is None:
         return math.nan
     if isinstance(value, str):
-        return {"inf": math.inf, "+inf": math.inf, "-inf": -math.inf}.get(value.strip().lower())
+        return INF_STRINGS.get(value.strip().lower())
     if isinstance(value, numbers.Real):
         return float(value)
     return None
