@@ -100,7 +100,12 @@ Conventions and deviations (each is a reading of an ambiguous or inconsistent pr
   y_r 19.9 m) and, when the encoders returned, MI-UKF's error rose to 3.2 m and took 12.1 s to come
   back within 2x its pre-fault 0.036 m.  So the ICR is held while the latest encoder pair is older
   than 1.5 encoder sample intervals (:func:`_encoder_fresh`); with the encoders present this changes
-  nothing.
+  nothing.  For the same reason the wheel speeds ``wl``, ``wr`` and the slip rates (10) of the UKF
+  outputs are NaN at the stale steps (the held pair is no measurement of the step), and the dead
+  reckoning (En-DR, ICR), which has nothing better, integrates the last wheel speeds through the
+  dropout but reports them NaN in ``wl``, ``wr``, the slips too, and counts the stale steps in
+  ``info["stale_encoder_steps"]``.  :func:`fit_icr` drops the GNSS samples that fall in an encoder gap
+  instead of interpolating the wheel speeds across it.
 * Consistency (measured on the testbed, results/liu2020/nees_consistency.md): as the paper defines them
   the filters are overconfident (6-state NEES ~20-40 against a consistent 6).  Per state block:
   position NEES ~11-30 (2 dof): the GNSS error is a decaying initial drift (time-correlated) fused as
@@ -239,18 +244,28 @@ def slip_rates(v_l: np.ndarray, v_r: np.ndarray, vx: np.ndarray, wz: np.ndarray,
 
 def _dr_estimate(name: str, run: Run, geom: Geometry, y_l: float, y_r: float, x_icr: float,
                  info: Mapping[str, Any]) -> Estimate:
+    """Dead reckoning with A_ICR (8) at the given ICR, integrated with (9).  Through an encoder
+    dropout the last wheel speeds are integrated (dead reckoning has nothing better); at those
+    steps ``wl``, ``wr`` and the slips are NaN (the held pair is no measurement of the step) and
+    ``info["stale_encoder_steps"]`` counts them."""
     t = run.t
-    v_l = geom.wheel_radius * _interval_speed(run["enc_wl"])
-    v_r = geom.wheel_radius * _interval_speed(run["enc_wr"])
+    wl_raw, wr_raw = run["enc_wl"], run["enc_wr"]
+    v_l = geom.wheel_radius * _interval_speed(wl_raw)
+    v_r = geom.wheel_radius * _interval_speed(wr_raw)
     vx, vy, wz = icr_forward(v_l, v_r, y_l, y_r, x_icr)  # eq. (8) / (11)
     x0, y0, yaw0, _ = _initial_pose(run)
     x, y, yaw = integrate_se2(t, vx, vy, wz, x0, y0, yaw0)  # eq. (9), exact SE(2)
     sl, sr = slip_rates(v_l, v_r, vx, wz, geom.track)
+    fresh = _encoder_fresh(t, np.isfinite(wl_raw) & np.isfinite(wr_raw))
+    stale = ~np.concatenate((fresh[1:], fresh[-1:]))  # row k holds the speeds sampled at k + 1 (_interval_speed)
+    wl, wr = (np.where(stale, np.nan, v / geom.wheel_radius) for v in (v_l, v_r))
+    sl, sr = np.where(stale, np.nan, sl), np.where(stale, np.nan, sr)
     n = t.size
     return make_estimate(
-        name, info, t=t, x=x, y=y, yaw=_wrap(yaw), vx=vx, vy=vy, wz=wz, slip_l=sl, slip_r=sr,
+        name, {**info, "stale_encoder_steps": int(np.count_nonzero(stale))}, t=t, x=x, y=y, yaw=_wrap(yaw),
+        vx=vx, vy=vy, wz=wz, slip_l=sl, slip_r=sr,
         y_l=np.full(n, y_l), y_r=np.full(n, y_r), x_icr=np.full(n, x_icr),
-        chi=np.full(n, (y_l - y_r) / geom.track), wl=v_l / geom.wheel_radius, wr=v_r / geom.wheel_radius,
+        chi=np.full(n, (y_l - y_r) / geom.track), wl=wl, wr=wr,
     )
 
 
@@ -313,12 +328,15 @@ def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -
     """Constant (y_l, y_r, x_icr) fitted to GNSS body velocities and gyro yaw rate (eqs. (6)-(8)).
 
     Residuals (m/s): v_x, v_y and ``B/2 * theta_dot``; soft-L1 loss; bounds y_l in (0, clamp],
-    y_r in [-clamp, 0), |x| <= clamp (the [-20, 20] of Sec. V-B-3)."""
+    y_r in [-clamp, 0), |x| <= clamp (the [-20, 20] of Sec. V-B-3).  The wheel speeds and the yaw rate
+    are interpolated to the GNSS times; a GNSS sample in a gap of either (a dropout: more than 1.5
+    sample intervals between the samples around it, :func:`_within_sampling`) or outside their span
+    is not used."""
     from scipy.optimize import least_squares
 
     if not runs:
         raise ValueError("fit_icr: no calibration runs")
-    vl, vr, vx, vy, wz = [], [], [], [], []
+    vl, vr, vx, vy, wz, keep = [], [], [], [], [], []
     track = None
     for run in runs:
         _check_channels(run, IcrDr.calibration_requires, IcrDr.name)
@@ -334,13 +352,14 @@ def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -
         c, s = np.cos(gyaw[rows]), np.sin(gyaw[rows])
         vx.append(c * gx[rows] + s * gy[rows])
         vy.append(-s * gx[rows] + c * gy[rows])
-        for name, out in (("enc_wl", vl), ("enc_wr", vr)):
+        sampled = np.ones(tg.size, dtype=bool)  # not in an encoder or gyro gap: no interpolation across one
+        for name, out, scale in (("enc_wl", vl, r), ("enc_wr", vr, r), ("imu_gz", wz, 1.0)):
             ts, v = run.samples(name)
-            out.append(r * np.interp(tg, ts, v))
-        ts, v = run.samples("imu_gz")
-        wz.append(np.interp(tg, ts, v))
+            sampled &= _within_sampling(ts, tg)
+            out.append(scale * np.interp(tg, ts, v))
+        keep.append(sampled)
     vl_, vr_, vx_, vy_, wz_ = (np.concatenate(a) for a in (vl, vr, vx, vy, wz))
-    moving = np.maximum(np.abs(vl_), np.abs(vr_)) >= min_speed
+    moving = (np.maximum(np.abs(vl_), np.abs(vr_)) >= min_speed) & np.concatenate(keep)
     if moving.sum() < 10:
         raise RunError(runs[0].where, "enc_wl/enc_wr", int(moving.sum()), "too few moving samples to fit the ICR")
     vl_, vr_, vx_, vy_, wz_ = vl_[moving], vr_[moving], vx_[moving], vy_[moving], wz_[moving]
@@ -533,16 +552,32 @@ def _icr_update_allowed(t: np.ndarray, zg: np.ndarray, timeout: float | None) ->
     return (t - last) <= timeout
 
 
+FRESH_SLACK = 1e-9  # [s] slack of _encoder_fresh's age limit against the rounding of the log times
+
+
 def _encoder_fresh(t: np.ndarray, enc_ok: np.ndarray) -> np.ndarray:
     """(T,) bool: is the latest encoder pair at step k at most 1.5 of the encoders' median sample
     interval old?  Eqs. (2), (3), (5) give the ICR from the posterior velocities and the wheel speeds
     of the same instant; with the wheel speeds stale (an encoder dropout) they are no observation of
     the ICR, which is then held (the paper does not treat dropouts).  Between the samples of a
-    slower encoder the held pair is fresh, as before."""
+    slower encoder the held pair is fresh, as before; before the first pair there is none.  (The age
+    limit carries 1e-9 s of slack: at half the row rate, 1.5 intervals fall on a row, where the
+    rounding of the times would otherwise decide.)"""
     when = np.where(enc_ok, t, np.nan)
     ts = t[enc_ok]
     period = float(np.median(np.diff(ts))) if ts.size >= 2 else 0.0
-    return (t - _ffill(when, before=-np.inf)) <= 1.5 * period
+    return (t - _ffill(when, before=-np.inf)) <= 1.5 * period + FRESH_SLACK
+
+
+def _within_sampling(ts: np.ndarray, tq: np.ndarray) -> np.ndarray:
+    """(len(tq),) bool: does each query time lie between two consecutive samples ``ts`` at most 1.5 of
+    their median interval apart (or on a sample)?  False in a gap (a dropout) and outside the samples."""
+    if ts.size < 2:
+        return np.isin(tq, ts)
+    period = float(np.median(np.diff(ts)))
+    i = np.clip(np.searchsorted(ts, tq), 1, ts.size - 1)
+    inside = (tq >= ts[0]) & (tq <= ts[-1])
+    return inside & ((ts[i] - ts[i - 1] <= 1.5 * period) | (tq == ts[i]) | (tq == ts[i - 1]))
 
 
 def _icr_window_fit(X: np.ndarray, wl: np.ndarray, wr: np.ndarray, r: float, aided: np.ndarray, t: np.ndarray,
@@ -679,8 +714,9 @@ def run_liu_filter(run: Run, p: LiuUkfParams, name: str = "liu2020.mi_ukf", make
         raise FilterError(exc.step, exc.stage,
                           f"{exc.detail} ({name}, run {run.where}, t = {t[min(exc.step, T - 1)]:.3f} s)") from None
 
-    v_l, v_r = r * wl_h, r * wr_h
-    sl, sr = slip_rates(v_l, v_r, X[:, 3], X[:, 5], B, p.slip_min_speed)
+    # the held wheel speeds are no measurement of a stale step: NaN there, and in the slips (10) made from them
+    wl_o, wr_o = np.where(enc_fresh_a, wl_h, np.nan), np.where(enc_fresh_a, wr_h, np.nan)
+    sl, sr = slip_rates(r * wl_o, r * wr_o, X[:, 3], X[:, 5], B, p.slip_min_speed)
     info: dict[str, Any] = {
         "state": STATE_NAMES, "params": dataclasses.asdict(p), "n_fused": n_fused,
         "gnss_updates": int(np.isfinite(zg[:, 0]).sum()),
@@ -694,7 +730,7 @@ def run_liu_filter(run: Run, p: LiuUkfParams, name: str = "liu2020.mi_ukf", make
     return make_estimate(
         name, info, t=t, x=X[:, 0], y=X[:, 1], yaw=X[:, 2], vx=X[:, 3], vy=X[:, 4], wz=X[:, 5],
         y_l=icr[:, 0], y_r=icr[:, 1], x_icr=icr[:, 2], chi=(icr[:, 0] - icr[:, 1]) / B,
-        slip_l=sl, slip_r=sr, wl=wl_h, wr=wr_h,
+        slip_l=sl, slip_r=sr, wl=wl_o, wr=wr_o,
     )
 
 

@@ -228,7 +228,19 @@ def liu_cases(dubhe):
         "gnss_outage": (F.gnss_outage(dubhe, *OUTAGE), *OUTAGE),
         "imu_spikes": (F.imu_saturation_spikes(dubhe, SPIKES, 1.0, seed=0), T0, max(SPIKES)),
         "encoder_dropout": (F.encoder_dropouts(dubhe, *DROPOUT), *DROPOUT),
+        # encoders at half the rate, sampled between the rows of the dropout's ends (no sample at t1)
+        "encoder_50hz": (_odd_encoder_rows(dubhe), *DROPOUT),
+        "encoder_50hz_dropout": (F.encoder_dropouts(_odd_encoder_rows(dubhe), *DROPOUT), *DROPOUT),
     }
+
+
+def _odd_encoder_rows(run: Run) -> Run:
+    """``run`` with every encoder sample of an even row removed (half the encoder rate)."""
+    data = run.data.copy()
+    even = np.arange(len(data)) % 2 == 0
+    for c in F.ENCODER_CHANNELS:
+        data.loc[even, c] = np.nan
+    return Run(data, dict(run.meta))
 
 
 @pytest.fixture(scope="module")
@@ -438,23 +450,92 @@ def test_liu_encoder_dropout_is_not_fused(name, liu_est, liu_cases):
     assert np.all(nf[enc & ~win][1:] >= 7)  # elsewhere the 6 encoder elements are fused
 
 
-@pytest.mark.parametrize("name", LIU)
-def test_liu_icr_is_held_through_an_encoder_dropout(name, liu_est, liu_cases):
-    """Eqs. (2), (3), (5) need the wheel speeds of the step: through a dropout the ICR stays at its
-    value of the last step whose encoder pair is fresh (<= 1.5 sample intervals old), and before the
-    dropout the estimate is that of the run without it (the rule changes nothing while encoders report)."""
-    run = liu_cases["encoder_dropout"][0]
-    est, clean = liu_est(name, "encoder_dropout"), liu_est(name, "none")
+def _stale_rows(run: Run) -> tuple[np.ndarray, int, float]:
+    """(stale rows, last fresh row before the dropout, time of the first pair after it) of ``run`` with the
+    encoder dropout DROPOUT: the rows before the first encoder pair, and the rows after the last pair before
+    the dropout has aged beyond 1.5 median sample intervals (methods.liu2020.FRESH_SLACK of slack) until the
+    first pair after it (whatever the encoder rate: that pair need not fall on the dropout's end)."""
+    from methods.liu2020 import FRESH_SLACK
+
     t = run.t
     enc_t = t[np.isfinite(run["enc_wl"]) & np.isfinite(run["enc_wr"])]
-    last_fresh = enc_t[enc_t < DROPOUT[0]].max() + 1.5 * np.median(np.diff(enc_t))
-    stale = (t > last_fresh) & (t < DROPOUT[1])
-    k0 = np.flatnonzero(t <= last_fresh)[-1]
-    assert stale.sum() > 900  # ~10 s at 100 Hz
+    last = enc_t[enc_t < DROPOUT[0]].max()
+    limit = 1.5 * np.median(np.diff(enc_t)) + FRESH_SLACK
+    back = enc_t[enc_t >= DROPOUT[1]].min()
+    aged = (t - last > limit) & (t < back)
+    return aged | (t < enc_t[0]), int(np.flatnonzero((t >= last) & (t - last <= limit))[-1]), float(back)
+
+
+@pytest.mark.parametrize("rate", ["", "encoder_50hz"])
+@pytest.mark.parametrize("name", LIU)
+def test_liu_icr_is_held_through_an_encoder_dropout(name, rate, liu_est, liu_cases):
+    """Eqs. (2), (3), (5) need the wheel speeds of the step: through a dropout the ICR stays at its
+    value of the last step whose encoder pair is fresh (<= 1.5 sample intervals old), and before the
+    dropout the estimate is that of the run without it (the rule changes nothing while encoders report).
+    The held wheel speeds are no measurement: wl, wr and the slips (10) are NaN at the stale steps.
+    At 100 Hz and at 50 Hz encoders (whose first sample after the dropout is not at its end)."""
+    case, clean_case = (f"{rate}_dropout", rate) if rate else ("encoder_dropout", "none")
+    run = liu_cases[case][0]
+    est, clean = liu_est(name, case), liu_est(name, clean_case)
+    t = run.t
+    stale, k0, back = _stale_rows(run)
+    clean_stale = t < t[np.isfinite(run["enc_wl"])][0]  # before the first pair (row 0 at 50 Hz)
+    assert stale[t >= DROPOUT[0]].sum() > 900  # ~10 s at 100 Hz rows
     for c in ("y_l", "y_r", "x_icr"):
-        assert np.all(est[c][stale] == est[c][k0]), c
+        assert np.all(est[c][stale & (t >= DROPOUT[0])] == est[c][k0]), c
         assert np.array_equal(est[c][t < DROPOUT[0]], clean[c][t < DROPOUT[0]]), c
-    assert est.info["icr_stale_encoder_steps"] == int(stale.sum()) and clean.info["icr_stale_encoder_steps"] == 0
+    assert est.info["icr_stale_encoder_steps"] == int(stale.sum())
+    assert clean.info["icr_stale_encoder_steps"] == int(clean_stale.sum()) <= 1
+    untouched = (t < DROPOUT[0]) | (t >= back)  # the held pair and the clean run's agree outside the dropout
+    for c in ("wl", "wr", "slip_l", "slip_r"):
+        assert np.isnan(est[c][stale]).all() and np.isnan(clean[c][clean_stale]).all(), c
+        if c in ("wl", "wr"):  # the slips depend on the posterior, which the dropout changes after it
+            assert np.array_equal(est[c][untouched], clean[c][untouched], equal_nan=True), c
+            # between the samples of the slower encoder the held pair is fresh
+            assert np.isfinite(est[c][~stale]).all() and np.isfinite(clean[c][~clean_stale]).all(), c
+    assert np.array_equal(est["slip_l"][t < DROPOUT[0]], clean["slip_l"][t < DROPOUT[0]], equal_nan=True)
+
+
+def test_liu_icr_fit_skips_gnss_samples_in_an_encoder_gap(liu_cases):
+    """fit_icr does not interpolate the wheel speeds across a dropout: on the run with the dropout it
+    gives exactly the fit of the intact run whose GNSS samples between the encoder pairs around the gap
+    are removed (the same samples, the same wheel speeds), and not the fit of the intact run."""
+    from methods.liu2020 import fit_icr
+
+    run, clean = liu_cases["encoder_dropout"][0], liu_cases["none"][0]
+    enc_t = run.t[np.isfinite(run["enc_wl"])]
+    last, back = enc_t[enc_t < DROPOUT[0]].max(), enc_t[enc_t >= DROPOUT[1]].min()
+    without = F.gnss_outage(clean, np.nextafter(last, np.inf), back)
+    got, expect, intact = fit_icr([run]), fit_icr([without]), fit_icr([clean])
+    assert got[:3] == expect[:3] and got[3]["fit_samples"] == expect[3]["fit_samples"]
+    assert intact[3]["fit_samples"] - got[3]["fit_samples"] >= 90  # ~10 s of 10 Hz fixes while moving
+    assert got[:3] != intact[:3]
+
+
+@pytest.mark.parametrize("rate", ["", "encoder_50hz"])
+@pytest.mark.parametrize("name", ("liu2020.en_dr", "liu2020.icr"))
+def test_liu_dead_reckoning_flags_an_encoder_dropout(name, rate, liu_cases):
+    """Dead reckoning integrates the last wheel speeds through a dropout (it has nothing better): the
+    pose is finite and equals, at the end of the dropout, the integral of the held speeds; the stale
+    steps report NaN wheel speeds and slips, and info counts them."""
+    case, clean_case = (f"{rate}_dropout", rate) if rate else ("encoder_dropout", "none")
+    run, clean_run = liu_cases[case][0], liu_cases[clean_case][0]
+    m = registry.get(name)
+    if name == "liu2020.icr":
+        m = dataclasses.replace(m, y_l=0.6, y_r=-0.55, x_icr=0.02)
+    est, clean = registry.estimate(m, run), registry.estimate(m, clean_run)
+    stale, _, _ = _stale_rows(run)
+    # row k of dead reckoning holds the speeds of the interval ending at row k + 1
+    stale_dr = np.concatenate((stale[1:], stale[-1:]))
+    assert est.info["stale_encoder_steps"] == int(stale_dr.sum()) and clean.info["stale_encoder_steps"] == 0
+    for c in ("wl", "wr", "slip_l", "slip_r"):
+        assert np.isnan(est[c][stale_dr]).all(), c
+    assert np.isfinite(est["wl"][~stale_dr]).all() and np.isfinite(clean["wl"]).all()
+    for c in ("x", "y", "yaw", "vx", "wz"):
+        assert np.isfinite(est[c]).all(), c
+    # through the dropout the body velocity is the last fresh pair's
+    k_last = int(np.flatnonzero(stale_dr)[0]) - 1
+    assert np.all(est["vx"][stale_dr] == est["vx"][k_last]) and np.all(est["wz"][stale_dr] == est["wz"][k_last])
 
 
 # ============================================================================================

@@ -68,6 +68,8 @@ class GapResult:
     series: dict[str, Any] = field(default_factory=dict, repr=False)  # for the figure
 
     def to_json(self) -> dict[str, Any]:
+        """The result as a JSON document.  The wall time ``runtime_s`` is left out (the Markdown report and
+        the CLI print it): the same input gives the same document, run after run."""
         return {
             "run": self.run_id, "scenario": self.scenario, "model": self.model,
             "verdict": self.verdict, "verdict_kind": self.verdict_kind,
@@ -76,7 +78,7 @@ class GapResult:
             "regimes_before": self.regimes_before, "regimes_after": self.regimes_after,
             "concentration": self.concentration, "cost": self.cost, "candidates": self.candidates,
             "channels_missing": self.channels_missing, "not_applicable": self.not_applicable,
-            "thresholds": self.thresholds, "runtime_s": self.runtime_s, "n_simulations": self.n_simulations,
+            "thresholds": self.thresholds, "n_simulations": self.n_simulations,
             "comparison": self.comparison,
         }
 

@@ -13,11 +13,12 @@ scenarios, seeds and magnitudes.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
 from typing import Any
+
+from bench.report.io import atomic_write_json, dumps_json
 
 DEV_SCENARIOS = ("gap_dev_coulomb", "gap_dev_janosi")
 DEV_SEEDS = (0, 1, 2, 3, 4)
@@ -85,16 +86,14 @@ def main(argv: list[str] | None = None) -> int:
     for scn in a.scenarios:
         for seed in a.null_seeds:
             rows.append(one(scn, seed, "null"))
-            print(json.dumps(rows[-1], default=str), flush=True)
+            print(dumps_json(rows[-1]), flush=True)
         for name in a.effects:
             for seed in a.seeds:
                 rows.append(one(scn, seed, name))
-                print(json.dumps(rows[-1], default=str), flush=True)
+                print(dumps_json(rows[-1]), flush=True)
     if a.out:
-        from bench.report.io import atomic_write_json
-
         atomic_write_json(a.out, rows)
-    print(json.dumps(summarise(rows), indent=1))
+    print(dumps_json(summarise(rows), indent=1))
     return 0
 
 
