@@ -71,7 +71,8 @@ Choices (each one stated where the paper is silent or the testbed differs)
   5 s (Yi has no absolute position sensor: position NEES is not meaningful), seed-averaged, against the
   two-sided 95% band chi2(2N)/N; paper configuration = the scored plugins with ``store_covariance``, consistent =
   :class:`methods.yi2009.Yi2009EkfConsistent` (slip as a Gauss-Markov state instead of fed back, Gauss-Markov
-  v_y row error, roll Jacobian at the modelled v_By, trapezoidal IMU integration, scheme 3's gamma from a 0.1 s
+  v_y row error, the v_x row fused as the odometer's displacement over 0.2 s windows, roll Jacobian at the
+  modelled v_By, trapezoidal IMU integration, scheme 3's gamma from a 0.1 s
   trailing mean of the wheel speeds, IMU noise from the rest at the start; an ablation switches
   each choice in full mode, ``NEES_ABLATIONS``) identified on the dedicated calibration runs
   ``Settings.nees_calibration`` (``scenarios/yi_calib.toml``, gradual command changes, and
@@ -108,8 +109,8 @@ from bench.spec import Scenario, load_scenario
 from bench.consistency import NullNees, simulate_nees
 from bench.ukf import NEES_MIN_STEP_FRACTION
 from methods.yi2009 import (ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, PUBLISHED_S_GAMMA, SLIP_CLIP_TOL, EkfParams,
-                            Yi2009Ekf, Yi2009EkfConsistent, _moving, _row_offsets, align_inputs, fit_s_gamma,
-                            reference_s_gamma_point, traction_transient)
+                            Yi2009Ekf, Yi2009EkfConsistent, _moving, _row_offsets, align_inputs, encoder_odometer_sd,
+                            fit_s_gamma, reference_s_gamma_point, traction_transient)
 
 __all__ = ["fig3", "fig4", "fig5_6", "fig7", "diagnosis", "nees", "nees_band", "nees_summary",
            "velocity_nees_series", "Settings", "SETTINGS", "mean_ci", "vision_slip",
@@ -788,21 +789,25 @@ NEES_CONFIGS = ("paper", "consistent")
 # Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
 # calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
 NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
-    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False, "icr_correction": False}, (2, 3)),
+    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False, "icr_correction": False, "odometer_window": 0.0},
+                      (2, 3)),
     "no_traction_slip": ({"traction_slip": False}, (1, 2, 3)),
     "no_icr_correction": ({"icr_correction": False}, (3,)),
-    "quantisation_states": ({"quantisation_states": True}, (1, 2, 3)),
+    "per_step_vx": ({"odometer_window": 0.0}, (1, 2, 3)),
+    "quantisation_states": ({"quantisation_states": True, "odometer_window": 0.0}, (1, 2, 3)),
     "roll_at_estimate": ({"roll_model_jacobian": False}, (1, 2)),
     "imu_forward": ({"imu_mean": False}, (1, 2, 3)),
     "no_gamma_smoothing": ({"gamma_smoothing": 0.0}, (3,)),
     "no_vx_gate": ({"vx_gate": 0.0}, (1, 2, 3)),
     "no_vy_gate": ({"vy_gate": False}, (3,)),
     "constant_vy_sigma": ({"vy_per_yaw_rate": False}, (3,)),
-    "adaptive_r": ({"adaptive_white": 2.0}, (1, 2, 3)),
+    "adaptive_r": ({"adaptive_white": 2.0, "odometer_window": 0.0}, (1, 2, 3)),
 }
-# Truth-informed attribution (full mode only; a diagnostic, never a method, never judged): the consistent filter told,
-# per scored path, that path's own v_x row error levels measured against the truth (row_slip_error ->
-# the Gauss-Markov sigma, row_high_frequency_error -> the white part); schemes 1 and 3 (2 coincides with 1)
+# Truth-informed attribution (full mode only; a diagnostic, never a method, never judged): the consistent filter with
+# the per-step v_x row (TOLD_BASE, where a white part acts) told, per scored path, that path's own v_x row error levels
+# measured against the truth (row_slip_error -> the Gauss-Markov sigma, row_high_frequency_error -> the white part);
+# schemes 1 and 3 (2 coincides with 1)
+TOLD_BASE = "ablation_per_step_vx"
 TOLD_CONFIGS: dict[str, tuple[bool, bool]] = {"told_slip": (True, False), "told_white": (False, True),
                                               "told_both": (True, True)}  # (sigma told, white told)
 TOLD_VARIANTS = (1, 3)
@@ -981,6 +986,7 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
            **({"imu_dt": float(np.mean(filter_dt))} if filter_dt else {}),
            "axes": axes, "diag": diag, "null": null,
            "noise": {v: dict(methods[("consistent", v)].noise_info) for v in VARIANTS}, "methods": methods,
+           "odometer": (float(methods[("consistent", 1)].odometer_window), encoder_odometer_sd(runs[keys[0]])),
            "calibration": [f"{sid} seed {seed}" for sid, seed in cfg.nees_calibration]}
     ctx.info[_NEES_KEY] = out
     return out
@@ -991,7 +997,8 @@ def told_noise(model: Yi2009EkfConsistent, slip: float | None = None, white: flo
     """``model`` (calibrated) with its v_x row's Gauss-Markov sigma set to ``slip`` [m/s] and / or its white part to
     ``white`` [m/s] (None keeps the identified value; floored at GM_NEGLIGIBLE_SIGMA / ADAPTIVE_R_FLOOR so the state
     and R stay > 0), without the null test's linearisation.  For the truth-informed attribution of the nees table:
-    told a scored path's own error levels, measured against the truth, this is a diagnostic, not a method."""
+    told a scored path's own error levels, measured against the truth, this is a diagnostic, not a method.  The v_x
+    row is fused per step (``odometer_window`` 0, the configuration TOLD_BASE), where its white part acts."""
     if not (model.calibrated and model.gm_x is not None):
         raise ValueError("told_noise: the model must be calibrated (it has no v_x Gauss-Markov model)")
     for name, val in (("slip", slip), ("white", white)):
@@ -1002,7 +1009,7 @@ def told_noise(model: Yi2009EkfConsistent, slip: float | None = None, white: flo
         gm = replace(gm, sigma=max(float(slip), GM_NEGLIGIBLE_SIGMA))
     if white is not None:
         gm = replace(gm, white=max(float(white), ADAPTIVE_R_FLOOR), white_floored=False)
-    return registry.derive(model, gm_x=gm, store_linearisation=False)
+    return registry.derive(model, gm_x=gm, store_linearisation=False, odometer_window=0.0)
 
 
 def _finite_rms(per_key: Mapping[str, Sequence[float]]) -> dict[str, float]:
@@ -1118,12 +1125,15 @@ def _along_slip_txt(out: Mapping[str, float], along: Sequence[tuple[str, int]]) 
     abl = "ablation_adaptive_r"
     if not (all(f"{k}.{abl}.v{v}.err_along" in out for k, v in along) and "imu_dt" in out):
         return txt
-    cells = [(k, v, out[f"{k}.consistent.v{v}.err_along"], out[f"{k}.consistent.v{v}.sd_along"],
+    base = TOLD_BASE  # the per-step row whose constant white R the adaptive one replaces
+    if not all(f"{k}.{base}.v{v}.err_along" in out for k, v in along):
+        return txt
+    cells = [(k, v, out[f"{k}.{base}.v{v}.err_along"], out[f"{k}.{base}.v{v}.sd_along"],
               out[f"{k}.{abl}.v{v}.err_along"], out[f"{k}.{abl}.v{v}.sd_along"]) for k, v in along]
     err_more = all(ea / max(ec, 1e-12) < sa / max(sc, 1e-12) for _, _, ec, sc, ea, sa in cells)
     window = NEES_ABLATIONS["adaptive_r"][0]["adaptive_white"]
-    txt += (f". With the row's white R matched online to the filter's post-fit residuals over the last {window:g} s "
-            "of rows (ablation adaptive_r, residual-based covariance matching) the along-track error "
+    txt += (f". With the per-step row's white R matched online to the filter's post-fit residuals over the last "
+            f"{window:g} s of rows (ablation adaptive_r, residual-based covariance matching) the along-track error "
             + ("falls more than the claim" if err_more else "and the claim change") + " (error / claimed sd [m/s], "
             "constant R -> matched R: "
             + ", ".join(f"{k} {v} {ec:.2g} / {sc:.2g} -> {ea:.2g} / {sa:.2g}" for k, v, ec, sc, ea, sa in cells) + ")")
@@ -1145,12 +1155,12 @@ def _told_txt(out: Mapping[str, float]) -> str:
     metrics it rests on say so; "" when it was not computed (quick mode)."""
     paths = [k for k in PATHS if f"{k}.told.slip" in out]
     cells = [(k, v) for k in paths for v in TOLD_VARIANTS]
-    configs = ("consistent",) + tuple(TOLD_CONFIGS)
+    configs = (TOLD_BASE,) + tuple(TOLD_CONFIGS)
     if not cells or not all(f"{k}.{c}.v{v}.in_band" in out for k, v in cells for c in configs):
         return ""
 
     def change(c: str) -> tuple[float, float]:  # range of the relative change of the claimed along-track sd
-        r = [out[f"{k}.{c}.v{v}.sd_along"] / out[f"{k}.consistent.v{v}.sd_along"] - 1.0 for k, v in cells]
+        r = [out[f"{k}.{c}.v{v}.sd_along"] / out[f"{k}.{TOLD_BASE}.v{v}.sd_along"] - 1.0 for k, v in cells]
         return min(r), max(r)
 
     def worst_axis(c: str, k: str, v: int, side: str) -> str:  # the axis furthest from err = sd on the failing side
@@ -1165,12 +1175,12 @@ def _told_txt(out: Mapping[str, float]) -> str:
     c = "told_both"
     fails = [(k, v, "above" if out[f"{k}.{c}.v{v}.above"] >= out[f"{k}.{c}.v{v}.below"] else "below")
              for k, v in cells if out[f"{k}.{c}.v{v}.in_band"] < NEES_MIN_STEP_FRACTION]
-    n_base = sum(out[f"{k}.consistent.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION for k, v in cells)
-    txt = ("Truth-informed attribution (diagnostic only, never judged; nees_consistency.md): told each path's own v_x "
-           f"row error levels against the truth, the claimed along-track sd changes by {pct('told_slip')} with the "
+    n_base = sum(out[f"{k}.{TOLD_BASE}.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION for k, v in cells)
+    txt = ("Truth-informed attribution (diagnostic only, never judged; nees_consistency.md): with the v_x row fused per "
+           f"step (ablation per_step_vx), told each path's own v_x row error levels against the truth, the claimed along-track sd changes by {pct('told_slip')} with the "
            f"slip sigma told and by {pct('told_white')} with the white part told (schemes "
            + " and ".join(map(str, TOLD_VARIANTS)) + f"); with both told {len(cells) - len(fails)} of {len(cells)} "
-           f"cells pass (as identified: {n_base})")
+           f"cells pass (per step as identified: {n_base})")
     if not fails:
         return txt + (": the v_x row's noise levels account for the failures as identified. " if n_base < len(cells)
                       else ". ")
@@ -1263,6 +1273,10 @@ def nees(ctx: Any) -> dict[str, float]:
             if info.get(part):
                 for key in keys + ("rms_before", "rms_after"):
                     out[f"noise.v{v}.{part}.{key}"] = float(info[part][key])
+    out["odometer_window"], out["odometer_sd"] = ne["odometer"]
+    odo = (f"the v_x row fused as the odometer's displacement over {out['odometer_window']:g} s windows (quantisation "
+           f"sd {1e3 * out['odometer_sd']:.3g} mm of the window's end counts) instead of per step; "
+           if out["odometer_window"] > 0 else "")
     lo, hi = out["band_lo"], out["band_hi"]
     calib = ", ".join(ne["calibration"])
     imu_src = "/".join(sorted({str(i["imu_noise_source"]) for i in ne["noise"].values()}))
@@ -1274,8 +1288,8 @@ def nees(ctx: Any) -> dict[str, float]:
              "(not fed back; schemes 1 and 2 then fuse the same rows), the traction slip c_f f_x + c_w |w_z| "
              "(specific force, yaw rate from the IMU) subtracted from the v_x row, in scheme 3 the S correction "
              "(c_0 + c_1 v |w_z|) w_z (v the encoders' no-slip speed) subtracted from the v_y row (15), the rest of "
-             "the v_x (13) and the v_y (15) row errors as first-order Gauss-Markov states, the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU "
-             "white noise "
+             "the v_x (13) and the v_y (15) row errors as first-order Gauss-Markov states, " + odo + "the v_z row's roll "
+             "column at the modelled v_By = 0 (schemes 1-2), IMU white noise "
              f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
              f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
              "paper's S(gamma) fit. pos RMS: position RMS vs truth [m], mean over seeds. err / sd along, across: RMS "
@@ -1330,8 +1344,9 @@ def nees(ctx: Any) -> dict[str, float]:
                   "Same calibration runs, identification and scored runs; per cell: steps in band / mean NEES / "
                   "position RMS [m] / along-track velocity error RMS : the sd the filter claims there [mm/s]. "
                   "slip_feedback: Yi's fed-back slip (13)-(14) instead of the slip state (schemes "
-                  "2-3); quantisation_states: the encoder quantisation as two states (count difference u_k - u_(k-1)) "
-                  "instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
+                  "2-3); per_step_vx: the v_x row fused at every step as a velocity with a white part instead of as "
+                  "the odometer's displacement over windows; quantisation_states: the per-step row with the encoder "
+                  "quantisation as two states (count difference u_k - u_(k-1)) instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
                   "v_By (schemes 1-2); no_traction_slip: without the traction slip model (the whole row error in the "
                   "Gauss-Markov state); no_icr_correction: scheme 3 without the S correction of the v_y row (the whole "
                   "S(gamma) error in the Gauss-Markov state); imu_forward: the IMU sample held over the next step "
@@ -1340,7 +1355,7 @@ def nees(ctx: Any) -> dict[str, float]:
                   "the v_x (and scheme 3's v_y) row fused in traction transients too; no_vy_gate: scheme 3's v_y row "
                   "fused in traction transients (the v_x row still gated); constant_vy_sigma: scheme 3's v_y row "
                   "error with a constant Gauss-Markov sigma instead of one proportional to the 0.5 s mean |yaw rate|; "
-                  "adaptive_r: the v_x row's white R estimated online from the filter's post-fit residuals over the "
+                  "adaptive_r: the per-step v_x row's white R estimated online from the filter's post-fit residuals over the "
                   f"last {NEES_ABLATIONS['adaptive_r'][0]['adaptive_white']:g} s of rows (residual-based covariance "
                   "matching, Mohamed & Schwarz 1999) instead of the identified constant. Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]
@@ -1357,8 +1372,9 @@ def nees(ctx: Any) -> dict[str, float]:
         out[f"{k}.told.slip"], out[f"{k}.told.white"] = slip, hf
     if told:
         lines += ["", "## Truth-informed attribution (diagnostic only: not a method, never judged)", "",
-                  "The consistent filter told, per scored path, that path's own v_x row error levels measured against "
-                  "the truth (told_noise): told_slip: the Gauss-Markov sigma set to the path's slow slip (row_slip, "
+                  "The consistent filter with the v_x row fused per step (ablation per_step_vx, where a white part "
+                  "acts) told, per scored path, that path's own v_x row error levels measured against the truth "
+                  "(told_noise): told_slip: the Gauss-Markov sigma set to the path's slow slip (row_slip, "
                   "1 s means after the traction model); told_white: the white part set to the path's high-frequency "
                   "error of the row as fused (the row error after the traction slip, whose f_x sample adds the "
                   "accelerometer's noise, minus its 0.5 s centred mean); told_both: both (floors "
@@ -1369,7 +1385,7 @@ def nees(ctx: Any) -> dict[str, float]:
                   + ". Per cell: steps in band / mean NEES / along-track error RMS : claimed sd / across-track error "
                   "RMS : claimed sd [mm/s].", "",
                   "| configuration | scheme | " + " | ".join(told) + " |", "|---|---|" + "---|" * len(told)]
-        for c in ("consistent",) + tuple(TOLD_CONFIGS):
+        for c in (TOLD_BASE,) + tuple(TOLD_CONFIGS):
             for v in TOLD_VARIANTS:
                 lines.append(f"| {c} | {v} | " + " | ".join(
                     f"{out[f'{k}.{c}.v{v}.in_band']:.0%} / {out[f'{k}.{c}.v{v}.nees']:.3g} / "
@@ -1416,7 +1432,8 @@ def nees(ctx: Any) -> dict[str, float]:
     above = [(k, v) for k, v in fails if out[f"{k}.consistent.v{v}.above"] >= out[f"{k}.consistent.v{v}.below"]]
     below = [(k, v) for k, v in fails if (k, v) not in above]
     txt = (f"Consistent configuration (slip as the Gauss-Markov error state of the v_x row instead of fed back, so "
-           "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; in scheme 3 "
+           "schemes 1 and 2 coincide; the traction slip c_f f_x + c_w |w_z| subtracted from the v_x row; " + odo
+           + "in scheme 3 "
            "the S correction (c_0 + c_1 v |w_z|) w_z subtracted from the v_y row; Gauss-Markov v_y row error"
            + (" with its std proportional to the 0.5 s mean |yaw rate|" if out.get("noise.v3.vy.per_yaw_rate") else "")
            + "; the v_x row (and scheme 3's v_y row) not fused in traction transients (0.1 s mean |f_x| above a "
@@ -1469,7 +1486,11 @@ def nees(ctx: Any) -> dict[str, float]:
 
         along = [(k, v) for k, v in below if ratio(k, v, "along") >= ratio(k, v, "across")]
         across = [(k, v) for k, v in below if (k, v) not in along]
-        if along:
+        if along and out["odometer_window"] > 0:
+            txt += (f"; most along the heading in {name(along)}: the odometer claims the quantisation of its window's "
+                    f"end counts ({1e3 * out['odometer_sd']:.3g} mm), which a count pattern that repeats within the "
+                    "window does not reach" + _along_slip_txt(out, along))
+        elif along:
             hf = [k for k in dict.fromkeys(k for k, _ in along) if f"{k}.row_hf" in out]
             txt += (f"; most along the heading in {name(along)}: the v_x row's white part identified on the "
                     f"calibration runs ({out['noise.v1.vx.white']:.3g} m/s) "

@@ -53,8 +53,10 @@ from methods.yi2009 import (
     fit_s_gamma,
     gauss_markov_fit,
     moving_mean_var,
+    encoder_odometer_sd,
     encoder_quantisation,
     initial_state,
+    odometer_min_window,
     reference_s_gamma_point,
     run_filter,
     run_filter_gm,
@@ -783,7 +785,9 @@ def test_gm_filter_vx_offset_is_the_row_shifted_by_the_offset():
         run_filter_gm(t, acc, gyr, enc, vx_offset=np.where(np.arange(t.size) == 7, np.nan, off), **kw)
     with pytest.raises(ValueError, match="traction_slip"):
         ekf_v2_consistent(slip_rows="feedback")
-    assert not ekf_v2_consistent(slip_rows="feedback", traction_slip=False).traction_slip
+    assert not ekf_v2_consistent(slip_rows="feedback", traction_slip=False, odometer_window=0.0).traction_slip
+    with pytest.raises(ValueError, match="odometer_window"):  # the odometer sums rows that must not use the filter
+        ekf_v2_consistent(slip_rows="feedback", traction_slip=False)
 
 
 def test_fit_icr_correction_recovers_the_generating_coefficients():
@@ -847,7 +851,7 @@ def test_gm_filter_vy_offset_is_subtracted_from_the_fused_row_and_refused_where_
         run_filter_gm(t, acc, gyr, enc, vy_offset=np.where(np.arange(t.size) == 7, np.nan, off), **kw)
     with pytest.raises(ValueError, match="icr_correction"):
         ekf_v3_consistent(slip_rows="feedback", traction_slip=False)
-    ekf_v2_consistent(slip_rows="feedback", traction_slip=False)  # the S correction is scheme 3's only
+    ekf_v2_consistent(slip_rows="feedback", traction_slip=False, odometer_window=0.0)  # the S correction is scheme 3's only
     with pytest.raises(ValueError, match="needs scheme 3"):
         ekf_v2_consistent(icr=IcrCorrection(0.1, 0.0))
     with pytest.raises(ValueError, match="needs scheme 3"):
@@ -1215,6 +1219,89 @@ def test_encoder_quantisation_from_the_platform_spec():
         encoder_quantisation(Run(run.data, meta))
 
 
+def test_gm_filter_odometer_equals_filterpy_with_a_resettable_state():
+    """The level-rest linear case with the v_x row fused as the odometer (``odo_window`` 25): FilterPy's KalmanFilter
+    (second implementation) with d as an 11th state (F row: dT on V_x and on b_x, 1 on d), on the window's last step
+    the row z = d (R = odo_sd^2) with v_z, on the others v_z alone, and d reset to 0 with its row and column of P
+    after each fused window.  Covariances agree at every step; only the window ends carry a v_x row."""
+    t, acc, gyr, enc, p, x0, p0 = _level_rest()
+    n, dt, m, sd = t.size, float(t[1] - t[0]), 25, 1e-4
+    gm = GaussMarkov(0.03, 0.7, 0.012)
+    res, _, rows = run_filter_gm(t, acc, gyr, enc, wheel_radius=R_WHEEL, track=TRACK, variant=1,
+                                 s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0, gm_x=gm, store_cov=True,
+                                 slip_rows="state", odo_window=m, odo_sd=sd)
+    assert res.cov.shape == (n, 11, 11) and np.all(res.state == 0.0)
+    ends = (np.arange(n) % m == 0) & (np.arange(n) > 0)
+    assert np.isfinite(rows[ends, 0]).all() and np.isnan(rows[~ends, 0]).all() and res.n_updates[0] == ends.sum()
+    kf = _level_rest_kalman(p, p0, gm, dt, nq=1)
+    kf.F[10, 3] = kf.F[10, 9] = dt
+    h_odo = np.zeros((2, 11))
+    h_odo[0, 10], h_odo[1, 5] = 1.0, 1.0
+    for k in range(1, n):
+        kf.predict()
+        if ends[k]:
+            kf.update(np.zeros(2), R=np.diag([sd * sd, p.sigma_vz**2]), H=h_odo)
+            kf.P[10, :] = kf.P[:, 10] = 0.0
+        else:
+            kf.update(np.zeros(1), R=kf.R[1:, 1:], H=kf.H[1:])
+        assert np.allclose(res.cov[k], kf.P, rtol=1e-8, atol=1e-14), k
+
+
+def test_gm_filter_odometer_follows_a_constant_acceleration_exactly():
+    """Level straight line at a = 0.5 m/s^2 from 0.3 m/s, IMU exact, encoders reading the mean speed over each
+    sample interval (v0 + a (t_k - dT/2)) / r (no quantisation, no slip): each window's summed rows equal the
+    odometer's trapezoid integral of the strapdown velocity, so every innovation is 0 and the velocity is v0 + a t
+    to rounding (without the trapezoid's dT/2 term the odometer would lag a dT^2/2 per step, 0.4 mm a window).
+    A step without its row (vx_skip at 30) restarts the window after it: the rows are fused at 25, 55, 80, ..."""
+    dt, n, a, v0 = 0.008, 400, 0.5, 0.3
+    t = np.arange(n) * dt
+    acc = np.tile([a, 0.0, G], (n, 1))
+    v_mean = np.concatenate(([v0], v0 + a * (t[1:] - dt / 2)))
+    enc = np.column_stack((v_mean, v_mean)) / R_WHEEL
+    p = EkfParams()
+    _, p0 = initial_state(np.tile([0.0, 0.0, G], (n, 1)), np.zeros((n, 2)), R_WHEEL, p, (0.0, 0.0, 0.0))
+    x0 = np.array([0.0, 0.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    skip = np.zeros(n, bool)
+    skip[30] = True
+    kw = dict(wheel_radius=R_WHEEL, track=TRACK, variant=1, s_gamma=PUBLISHED_S_GAMMA, params=p, x0=x0, p0=p0,
+              gm_x=GaussMarkov(0.001, 1.0, 0.01), slip_rows="state", imu_mean=True, odo_window=25, odo_sd=1e-4)
+    gyr = np.zeros((n, 3))
+    res, b, rows = run_filter_gm(t, acc, gyr, enc, vx_skip=skip, **kw)
+    np.testing.assert_allclose(res.state[:, 3], v0 + a * t, rtol=0, atol=1e-9)
+    assert np.abs(b).max() < 1e-9 and np.abs(res.state[:, 4:9]).max() < 1e-9
+    fused = np.flatnonzero(np.isfinite(rows[:, 0]))
+    assert fused[:3].tolist() == [25, 55, 80] and np.all(np.diff(fused[1:]) == 25)
+    with pytest.raises(ValueError, match="odo_window"):
+        run_filter_gm(t, acc, gyr, enc, **{**kw, "slip_rows": "feedback"})
+    with pytest.raises(ValueError, match="odo_window"):
+        run_filter_gm(t, acc, gyr, enc, enc_quant=0.007, **kw)
+
+
+def test_odometer_window_rule_and_the_consistent_default():
+    """encoder_odometer_sd is (r q)^2 / 12 of the two end counts of both wheels (q = 2 pi / counts_per_rev);
+    odometer_min_window gives the shortest whole number of steps with the window's mean-speed quantisation
+    sd / T at most a quarter of accel_noise sqrt(T dT) (closed form), 0.176 s on Yi's platform at its 125 Hz and
+    0.05 m/s^2; the consistent configuration's 0.2 s default satisfies it, and an odometer excludes the per-step
+    options."""
+    run = synthetic_run("straight", 3)
+    enc = PLATFORM["sensors"]["encoder"]
+    rq = R_WHEEL * 2 * math.pi / enc["counts_per_rev"]
+    assert encoder_odometer_sd(run) == pytest.approx(rq / math.sqrt(12.0), rel=1e-12)
+    dt, sa = 1.0 / enc["rate_hz"], 0.05
+    t_min = odometer_min_window(run, sa, dt)
+    m = round(t_min / dt)
+    assert m == pytest.approx(t_min / dt, abs=1e-9)
+    assert rq / math.sqrt(12.0) / (m * dt) <= 0.25 * sa * math.sqrt(m * dt * dt)  # the rule holds at T
+    assert rq / math.sqrt(12.0) / ((m - 1) * dt) > 0.25 * sa * math.sqrt((m - 1) * dt * dt)  # and not one step less
+    assert t_min == pytest.approx(0.176) and ekf_v1_consistent().odometer_window >= t_min
+    for kw in ({"quantisation_states": True}, {"adaptive_white": 2.0}):
+        with pytest.raises(ValueError, match="odometer_window"):
+            ekf_v1_consistent(**kw)
+        ekf_v1_consistent(odometer_window=0.0, **kw)
+    with pytest.raises(ValueError, match="odometer_window"):
+        ekf_v1_consistent(odometer_window=-0.1)
+
+
 @pytest.mark.parametrize("variant", [1, 2, 3])
 def test_paper_plugin_is_run_filter_with_the_paper_parameters(variant):
     """The paper plugins (Fig. 5 schemes) are a direct run_filter call with EkfParams(): the consistent section
@@ -1261,7 +1348,7 @@ def test_consistent_scheme2_nees_far_below_the_overconfident_paper_filter(consis
     n_paper, n_cons = _velocity_nees(run, paper), _velocity_nees(run, cons)
     assert n_paper > 50.0 and n_cons < n_paper / 10.0
     assert cons.info["gm_x"] == dataclasses.asdict(consistent_v2.gm_x)
-    assert cons.info["P"].shape == (cons.data.shape[0], 9, 9) and cons.info["P_aug"].shape[1:] == (10, 10)
+    assert cons.info["P"].shape == (cons.data.shape[0], 9, 9) and cons.info["P_aug"].shape[1:] == (11, 11)  # b_x, d
 
 
 def test_consistent_slip_state_not_overconfident_where_the_fed_back_slip_is():
@@ -1269,7 +1356,7 @@ def test_consistent_slip_state_not_overconfident_where_the_fed_back_slip_is():
     b_x state the time-mean velocity NEES is below the chi-square 99.9 % quantile of 2 dof, and below the NEES of the
     same configuration with Yi's fed-back slip (slip_rows="feedback"), whose row is a copy of the filter's previous
     velocity and counts the prior again (both without the traction slip model: the synthetic slip is a constant
-    ratio, and the feedback configuration cannot take it)."""
+    ratio, and the feedback configuration cannot take it; both with the per-step v_x row, which the feedback needs)."""
     clean = dataclasses.replace(TESTBED, acc_bias=(0.0, 0.0, 0.0), gyr_bias=(0.0, 0.0, 0.0))
     cal = []
     for i in (0, 3, 6, 9):
@@ -1279,7 +1366,8 @@ def test_consistent_slip_state_not_overconfident_where_the_fed_back_slip_is():
     run = synthetic_run("circle", 21, clean)
     nees = {}
     for rows in ("state", "feedback"):
-        m = registry.calibrate(ekf_v2_consistent(store_covariance=True, slip_rows=rows, traction_slip=False), cal)
+        m = registry.calibrate(ekf_v2_consistent(store_covariance=True, slip_rows=rows, traction_slip=False,
+                                                 odometer_window=0.0), cal)  # both fuse the row per step
         nees[rows] = _velocity_nees(run, registry.estimate(m, run))
     assert nees["state"] <= stats.chi2.ppf(0.999, 2) and nees["state"] < nees["feedback"]
 

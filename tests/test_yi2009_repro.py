@@ -408,9 +408,11 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
     cells = [(k, c, v) for k in Y.PATHS for c in Y.NEES_CONFIGS for v in (1, 2, 3)]
 
     abl = [(k, "ablation_adaptive_r", v) for k in Y.PATHS for v in (1, 2, 3)]
+    per_step = [(k, Y.TOLD_BASE, v) for k in Y.PATHS for v in (1, 2, 3)]  # the base of the adaptive_r comparison
 
-    def ne(clip: float, sigma: float = 0.05, extra: bool = False, err_abl: float = 0.002) -> dict:
-        series = {key: np.full((2, T), 2.0) for key in cells + (abl if extra else [])}
+    def ne(clip: float, sigma: float = 0.05, extra: bool = False, err_abl: float = 0.002,
+           odometer: tuple[float, float] = (0.0, 7.8e-5)) -> dict:
+        series = {key: np.full((2, T), 2.0) for key in cells + (abl + per_step if extra else [])}
         series[("straight", "consistent", 2)] = np.full((2, T), 10 * hi)  # above at every step
         low = np.full((2, T), 0.5 * lo)
         low[:, 0] = 2.0 * T  # time mean inside the band, yet 99 % of the steps below it
@@ -421,12 +423,13 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         gm = dict(sigma=sigma, tau=2.0, white=0.01, white_floored=False)
         noise = {v: dict(accel_noise=0.05, gyro_noise=0.005, p0_rollpitch=1e-3, iterations=3, last_change=0.01,
                          converged=True, imu_noise_source="rest", vx=gm, vy=gm if v == 3 else None) for v in (1, 2, 3)}
-        per_seed = {key: [np.full((T, 4), 0.01), np.full((T, 4), 0.01)] for key in cells}
+        per_seed = {key: [np.full((T, 4), 0.01), np.full((T, 4), 0.01)] for key in cells + per_step}
         if extra:  # (err along, across, claimed sd along, across): the error 0.01 -> err_abl, the claim 0.01 -> 0.005
             per_seed.update({key: [np.tile([err_abl, 0.01, 0.005, 0.01], (T, 1))] * 2 for key in abl})
         calib_nees = {(sid, v): dict(nees=2.0, err_along=0.01, sd_along=0.01, err_across=0.01, sd_across=0.01)
                       for sid, _ in Y.SETTINGS.nees_calibration for v in (1, 2, 3)}
-        out = dict(series=series, rms={key: [0.1, 0.1] for key in cells + abl}, diag=diag, noise=noise,
+        out = dict(series=series, rms={key: [0.1, 0.1] for key in cells + abl + per_step}, diag=diag, noise=noise,
+                   odometer=odometer,
                    axes=per_seed,
                    calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"],
                    row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4}, calib_row_slip={"yi_calib": 7e-4},
@@ -453,6 +456,15 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         assert "sigma (0.05 m/s, the slip left after the traction model over gradual and step commands) exceeds" in txt
         assert "straight 0.0001, circle 0.0003, figure8 0.0004 m/s; calibration runs yi_calib 0.0007 m/s" in txt
         assert "adaptive_r" not in txt  # quick mode: no ablation
+        assert "odometer" not in txt  # the per-step v_x row
+    # with the odometer: the configuration names it, and a cell below the band along the heading gets its sentence
+    ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, odometer=(0.2, 7.8e-5)), "seeds": [0, 1]}, quick=True,
+                          out_dir=tmp_path, note=notes.__setitem__)
+    Y.nees(ctx)
+    txt = notes["nees_consistent"]
+    assert "the v_x row fused as the odometer's displacement over 0.2 s windows (quantisation sd 0.078 mm" in txt
+    assert "most along the heading in circle scheme 1: the odometer claims the quantisation of its window's" in txt
+    assert "white part identified on the calibration runs" not in txt
     notes = {}
     for sigma, err_abl, more in ((1e-4, 0.002, True), (0.05, 0.008, False)):
         ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, sigma, True, err_abl), "seeds": [0, 1]}, quick=True,
@@ -498,8 +510,9 @@ def test_row_slip_error_is_the_slow_row_error_after_the_traction_model():
 
 
 def test_told_noise_sets_the_v_x_row_levels_and_nothing_else():
-    """told_noise (the nees table's truth-informed attribution): told the model's own identified levels, the filter is
-    the consistent one, bit for bit (states and covariance); a smaller told white part lowers the claimed along-track
+    """told_noise (the nees table's truth-informed attribution): the v_x row per step (odometer off, where the white
+    part acts); told the model's own identified levels, the filter is the per-step consistent one, bit for bit
+    (states and covariance); a smaller told white part lowers the claimed along-track
     sd and a larger one raises it; the levels are floored (state and R > 0); the null test's linearisation is never
     stored; an uncalibrated model, a negative or NaN level are refused with the offending value."""
     from methods.yi2009 import ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, GaussMarkov, Yi2009EkfConsistent
@@ -508,7 +521,8 @@ def test_told_noise_sets_the_v_x_row_levels_and_nothing_else():
     run = synthetic_run("straight", 3, Sensors(lam0=0.02))
     gm = GaussMarkov(sigma=0.003, tau=2.0, white=0.01)
     model = Yi2009EkfConsistent(variant=1, traction_slip=False, store_covariance=True, store_linearisation=True,
-                                calibrated=True, gm_x=gm)
+                                calibrated=True, gm_x=gm, odometer_window=0.0)
+    assert Y.told_noise(dataclasses.replace(model, odometer_window=0.2)).odometer_window == 0.0  # per step
     same = Y.told_noise(model, slip=gm.sigma, white=gm.white)
     assert same.gm_x == gm and not same.store_linearisation and Y.told_noise(model).gm_x == gm
     ref, got = model.estimate(run), same.estimate(run)
@@ -551,34 +565,34 @@ def test_told_note_sentence_follows_the_told_cells():
     for k in Y.PATHS:
         out[f"{k}.told.slip"], out[f"{k}.told.white"] = 1e-4, 1e-3
     for k, v in cells:
-        for c, sd_along in (("consistent", 2e-3), ("told_slip", 1.9e-3), ("told_white", 1.0e-3), ("told_both", 0.8e-3)):
+        for c, sd_along in ((Y.TOLD_BASE, 2e-3), ("told_slip", 1.9e-3), ("told_white", 1.0e-3), ("told_both", 0.8e-3)):
             p = f"{k}.{c}.v{v}"
             out.update({p + ".in_band": 0.95, p + ".below": 0.05, p + ".above": 0.0, p + ".err_along": 1e-3,
                         p + ".sd_along": sd_along, p + ".err_across": 1e-3, p + ".sd_across": 1e-3})
     txt = Y._told_txt(out)  # every cell passes, as identified and told: no verdict on the levels
     assert "by -5% with the slip sigma told and by -50% with the white part told" in txt
-    assert txt.endswith("with both told 6 of 6 cells pass (as identified: 6). ")
-    out["circle.consistent.v3.in_band"] = 0.35
+    assert txt.endswith("with both told 6 of 6 cells pass (per step as identified: 6). ")
+    out[f"circle.{Y.TOLD_BASE}.v3.in_band"] = 0.35
     out["straight.told_slip.v1.sd_along"] = 2.2e-3  # one cell's claim rises: the range is -5 % to +10 %
     txt = Y._told_txt(out)
     assert "changes by -5% to +10% with the slip sigma told and by -50% with the white part told" in txt
-    assert "with both told 6 of 6 cells pass (as identified: 5): the v_x row's noise levels account for" in txt
+    assert "with both told 6 of 6 cells pass (per step as identified: 5): the v_x row's noise levels account for" in txt
     # two told cells fail: one below the band (across over-covered), one above (along under-covered)
     out.update({"figure8.told_both.v1.in_band": 0.79, "figure8.told_both.v1.below": 0.21,
                 "figure8.told_both.v1.sd_across": 4e-3, "straight.told_both.v3.in_band": 0.02,
                 "straight.told_both.v3.above": 0.98, "straight.told_both.v3.below": 0.0,
                 "straight.told_both.v3.err_along": 4e-3})
     txt = Y._told_txt(out)
-    assert "with both told 4 of 6 cells pass (as identified: 5)" in txt and "account for" not in txt
+    assert "with both told 4 of 6 cells pass (per step as identified: 5)" in txt and "account for" not in txt
     assert "straight scheme 3 2% of the steps in band, mostly above, along 4 : 0.8 mm/s" in txt
     assert "figure8 scheme 1 79% of the steps in band, mostly below, across 1 : 4 mm/s" in txt
     assert "noise levels are not the whole cause" in txt and "the error exceeds the claim" in txt
     assert "across the track the error is not the v_x row's" in txt and "the claim stays above the error" not in txt
     # the same failures when every cell passed as identified: no verdict on the levels; an along cell below the band
-    out["circle.consistent.v3.in_band"] = 0.95
+    out[f"circle.{Y.TOLD_BASE}.v3.in_band"] = 0.95
     out.update({"circle.told_both.v1.in_band": 0.5, "circle.told_both.v1.below": 0.5})
     txt = Y._told_txt(out)
-    assert "as identified: 6" in txt and "not the whole cause" not in txt
+    assert "per step as identified: 6" in txt and "not the whole cause" not in txt
     assert "circle scheme 1 50% of the steps in band, mostly below, along 1 : 0.8 mm/s" not in txt  # err > sd there
     assert "the claim stays above the error" not in txt
     out["circle.told_both.v1.err_along"] = 0.2e-3
