@@ -789,8 +789,8 @@ NEES_CONFIGS = ("paper", "consistent")
 # Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
 # calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
 NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
-    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False, "icr_correction": False, "odometer_window": 0.0},
-                      (2, 3)),
+    "slip_feedback": ({"slip_rows": "feedback", "traction_slip": False, "icr_correction": False,
+                       "odometer_window": 0.0}, (2, 3)),
     "no_traction_slip": ({"traction_slip": False}, (1, 2, 3)),
     "no_icr_correction": ({"icr_correction": False}, (3,)),
     "per_step_vx": ({"odometer_window": 0.0}, (1, 2, 3)),
@@ -1176,8 +1176,9 @@ def _told_txt(out: Mapping[str, float]) -> str:
     fails = [(k, v, "above" if out[f"{k}.{c}.v{v}.above"] >= out[f"{k}.{c}.v{v}.below"] else "below")
              for k, v in cells if out[f"{k}.{c}.v{v}.in_band"] < NEES_MIN_STEP_FRACTION]
     n_base = sum(out[f"{k}.{TOLD_BASE}.v{v}.in_band"] >= NEES_MIN_STEP_FRACTION for k, v in cells)
-    txt = ("Truth-informed attribution (diagnostic only, never judged; nees_consistency.md): with the v_x row fused per "
-           f"step (ablation per_step_vx), told each path's own v_x row error levels against the truth, the claimed along-track sd changes by {pct('told_slip')} with the "
+    txt = ("Truth-informed attribution (diagnostic only, never judged; nees_consistency.md): with the v_x row fused "
+           "per step (ablation per_step_vx), told each path's own v_x row error levels against the truth, the claimed "
+           f"along-track sd changes by {pct('told_slip')} with the "
            f"slip sigma told and by {pct('told_white')} with the white part told (schemes "
            + " and ".join(map(str, TOLD_VARIANTS)) + f"); with both told {len(cells) - len(fails)} of {len(cells)} "
            f"cells pass (per step as identified: {n_base})")
@@ -1288,8 +1289,8 @@ def nees(ctx: Any) -> dict[str, float]:
              "(not fed back; schemes 1 and 2 then fuse the same rows), the traction slip c_f f_x + c_w |w_z| "
              "(specific force, yaw rate from the IMU) subtracted from the v_x row, in scheme 3 the S correction "
              "(c_0 + c_1 v |w_z|) w_z (v the encoders' no-slip speed) subtracted from the v_y row (15), the rest of "
-             "the v_x (13) and the v_y (15) row errors as first-order Gauss-Markov states, " + odo + "the v_z row's roll "
-             "column at the modelled v_By = 0 (schemes 1-2), IMU white noise "
+             "the v_x (13) and the v_y (15) row errors as first-order Gauss-Markov states, " + odo
+             + "the v_z row's roll column at the modelled v_By = 0 (schemes 1-2), IMU white noise "
              f"and levelling precision from the rest at the start (source: {imu_src}), all identified against the vision "
              f"reference on the calibration runs {calib} (identify_yi_noise), never on a scored run; scheme 3 uses the "
              "paper's S(gamma) fit. pos RMS: position RMS vs truth [m], mean over seeds. err / sd along, across: RMS "
@@ -1346,7 +1347,8 @@ def nees(ctx: Any) -> dict[str, float]:
                   "slip_feedback: Yi's fed-back slip (13)-(14) instead of the slip state (schemes "
                   "2-3); per_step_vx: the v_x row fused at every step as a velocity with a white part instead of as "
                   "the odometer's displacement over windows; quantisation_states: the per-step row with the encoder "
-                  "quantisation as two states (count difference u_k - u_(k-1)) instead of a share of the white R; roll_at_estimate: the v_z row's roll column at the estimated "
+                  "quantisation as two states (count difference u_k - u_(k-1)) instead of a share of the white R; "
+                  "roll_at_estimate: the v_z row's roll column at the estimated "
                   "v_By (schemes 1-2); no_traction_slip: without the traction slip model (the whole row error in the "
                   "Gauss-Markov state); no_icr_correction: scheme 3 without the S correction of the v_y row (the whole "
                   "S(gamma) error in the Gauss-Markov state); imu_forward: the IMU sample held over the next step "
@@ -1355,7 +1357,8 @@ def nees(ctx: Any) -> dict[str, float]:
                   "the v_x (and scheme 3's v_y) row fused in traction transients too; no_vy_gate: scheme 3's v_y row "
                   "fused in traction transients (the v_x row still gated); constant_vy_sigma: scheme 3's v_y row "
                   "error with a constant Gauss-Markov sigma instead of one proportional to the 0.5 s mean |yaw rate|; "
-                  "adaptive_r: the per-step v_x row's white R estimated online from the filter's post-fit residuals over the "
+                  "adaptive_r: the per-step v_x row's white R estimated online from the filter's post-fit residuals "
+                  "over the "
                   f"last {NEES_ABLATIONS['adaptive_r'][0]['adaptive_white']:g} s of rows (residual-based covariance "
                   "matching, Mohamed & Schwarz 1999) instead of the identified constant. Reported, not judged.", "",
                   "| configuration | scheme | " + " | ".join(PATHS) + " |", "|---|---|" + "---|" * len(PATHS)]

@@ -851,7 +851,7 @@ def test_gm_filter_vy_offset_is_subtracted_from_the_fused_row_and_refused_where_
         run_filter_gm(t, acc, gyr, enc, vy_offset=np.where(np.arange(t.size) == 7, np.nan, off), **kw)
     with pytest.raises(ValueError, match="icr_correction"):
         ekf_v3_consistent(slip_rows="feedback", traction_slip=False)
-    ekf_v2_consistent(slip_rows="feedback", traction_slip=False, odometer_window=0.0)  # the S correction is scheme 3's only
+    ekf_v2_consistent(slip_rows="feedback", traction_slip=False, odometer_window=0.0)  # the S correction: scheme 3
     with pytest.raises(ValueError, match="needs scheme 3"):
         ekf_v2_consistent(icr=IcrCorrection(0.1, 0.0))
     with pytest.raises(ValueError, match="needs scheme 3"):
