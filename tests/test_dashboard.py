@@ -362,7 +362,7 @@ def test_citation_cff_matches_the_package_and_the_papers():
     doc = yaml.safe_load((REPO / "CITATION.cff").read_text())
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
     assert doc["cff-version"] == "1.2.0" and doc["message"] and doc["title"]
-    assert doc["version"] == project["version"] and doc["license"] == project["license"]["text"] == "MIT"
+    assert doc["version"] == project["version"] and doc["license"] == project["license"] == "MIT"  # SPDX (PEP 639)
     assert str(doc["date-released"]) == "2026-11-25" and doc["authors"] == [{"name": "The skidbench developers"}]
     refs = doc["references"]
     assert sorted(r["year"] for r in refs) == [2007, 2009, 2010, 2015, 2020]
