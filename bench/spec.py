@@ -377,8 +377,8 @@ _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
 def _json_inf(value: Any, tp: Any) -> Any:
     """A float field's "inf" / "-inf" (strict JSON has no infinity: bench.report.io.json_safe
     writes it as these strings, e.g. in runs_manifest.json) as the float; any other value as is."""
-    if tp is float and isinstance(value, str) and value.strip().lower() in INF_STRINGS:
-        return INF_STRINGS[value.strip().lower()]
+    if tp is float and isinstance(value, str):
+        return INF_STRINGS.get(value.strip().lower(), value)
     return value
 
 

@@ -1269,18 +1269,14 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     i56, i57, i66, i67, i76, i86, i87 = ix(5, 6), ix(5, 7), ix(6, 6), ix(6, 7), ix(7, 6), ix(8, 6), ix(8, 7)
     ib = [ix(9 + j, 9 + j) for j in range(nb)]
     zb = (0.0,) * nb
-    ex = (1.0, 0.0)[:nb] + ((-1.0, 1.0) if nq else ())
+    ex = (1.0, 0.0)[:nb] + ((-1.0, 1.0) if nq else ()) + (0.0,) * no
     ey = (0.0, 1.0)[:nb]
     zq = (0.0,) * (nq + no)
-    ex = ex + (0.0,) * no
     h_odo = (0.0,) * iod + (1.0,)
     iod3, iod4, iod5, iod7, iod8 = (ix(iod, j) for j in (3, 4, 5, 7, 8)) if no else (0,) * 5
     iodb = ix(iod, 9) if no and nb else None
     od = z_acc = 0.0
     n_acc = 0
-    reset_od = np.eye(nx)
-    if no:
-        reset_od[iod, iod] = 0.0
     shift_q = np.eye(nx)
     if nq:
         shift_q[iqc, iqc], shift_q[iqc, iqu], shift_q[iqu, iqu] = 0.0, 1.0, 0.0
@@ -1494,9 +1490,10 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                     n_acc = 0
                     P[iod, :] = 0.0
                     P[:, iod] = 0.0
-                    if store_lin:
-                        lin_a[-1] = reset_od @ lin_a[-1]
-                        lin_c[-1] = reset_od @ lin_c[-1] @ reset_od
+                    if store_lin:  # the reset in the error recursion: d's error is 0 after it
+                        lin_a[-1][iod, :] = 0.0
+                        lin_c[-1][iod, :] = 0.0
+                        lin_c[-1][:, iod] = 0.0
             if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi + sum(b)):
                 raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
             psi = (psi + math.pi) % two_pi - math.pi  # wrap the yaw state
@@ -1997,13 +1994,13 @@ class Yi2009EkfConsistent(Yi2009Ekf):
         the smoothed wheel speeds of gamma (40) from its encoders ``enc`` and the v_x row's traction transients from
         its accelerometer ``acc`` at the filter steps ``t``, as :func:`align_inputs` gives them)."""
         skip = traction_transient(acc, t, self.vx_gate)
+        dt = float(np.median(np.diff(t)))
         return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
                 "enc_quant": encoder_quantisation(run) if self.quantisation_states else 0.0, "imu_mean": self.imu_mean,
                 "enc_gamma": self.gamma_speeds(t, enc), "vx_skip": skip,
                 "vy_skip": skip if self.vy_gate and self.variant == 3 else None,
-                "adaptive_vx": max(1, int(round(self.adaptive_white / float(np.median(np.diff(t))))))
-                if self.adaptive_white else 0,
-                **({"odo_window": max(1, int(round(self.odometer_window / float(np.median(np.diff(t)))))),
+                "adaptive_vx": max(1, int(round(self.adaptive_white / dt))) if self.adaptive_white else 0,
+                **({"odo_window": max(1, int(round(self.odometer_window / dt))),
                     "odo_sd": encoder_odometer_sd(run)} if self.odometer_window else {})}
 
     def gamma_speeds(self, t: np.ndarray, enc: np.ndarray) -> np.ndarray | None:

@@ -1122,11 +1122,8 @@ def _along_slip_txt(out: Mapping[str, float], along: Sequence[tuple[str, int]]) 
                 "the row is fused: " + ", ".join(f"{k} {val:.2g}" for k, val in slip.items()) + " m/s"
                 + ("; calibration runs " + ", ".join(f"{k} {val:.2g}" for k, val in calib.items()) + " m/s"
                    if calib else "") + ")")
-    abl = "ablation_adaptive_r"
-    if not (all(f"{k}.{abl}.v{v}.err_along" in out for k, v in along) and "imu_dt" in out):
-        return txt
-    base = TOLD_BASE  # the per-step row whose constant white R the adaptive one replaces
-    if not all(f"{k}.{base}.v{v}.err_along" in out for k, v in along):
+    abl, base = "ablation_adaptive_r", TOLD_BASE  # base: the per-step row whose constant R the adaptive one replaces
+    if not (all(f"{k}.{c}.v{v}.err_along" in out for k, v in along for c in (abl, base)) and "imu_dt" in out):
         return txt
     cells = [(k, v, out[f"{k}.{base}.v{v}.err_along"], out[f"{k}.{base}.v{v}.sd_along"],
               out[f"{k}.{abl}.v{v}.err_along"], out[f"{k}.{abl}.v{v}.sd_along"]) for k, v in along]

@@ -223,14 +223,15 @@ def dubhe(sim) -> Run:
 @pytest.fixture(scope="module")
 def liu_cases(dubhe):
     """Faulted runs: case -> (run, fault start, fault end)."""
+    half = _odd_encoder_rows(dubhe)
     return {
         "none": (dubhe, *OUTAGE),
         "gnss_outage": (F.gnss_outage(dubhe, *OUTAGE), *OUTAGE),
         "imu_spikes": (F.imu_saturation_spikes(dubhe, SPIKES, 1.0, seed=0), T0, max(SPIKES)),
         "encoder_dropout": (F.encoder_dropouts(dubhe, *DROPOUT), *DROPOUT),
         # encoders at half the rate, sampled between the rows of the dropout's ends (no sample at t1)
-        "encoder_50hz": (_odd_encoder_rows(dubhe), *DROPOUT),
-        "encoder_50hz_dropout": (F.encoder_dropouts(_odd_encoder_rows(dubhe), *DROPOUT), *DROPOUT),
+        "encoder_50hz": (half, *DROPOUT),
+        "encoder_50hz_dropout": (F.encoder_dropouts(half, *DROPOUT), *DROPOUT),
     }
 
 
@@ -450,6 +451,11 @@ def test_liu_encoder_dropout_is_not_fused(name, liu_est, liu_cases):
     assert np.all(nf[enc & ~win][1:] >= 7)  # elsewhere the 6 encoder elements are fused
 
 
+def _dropout_cases(rate: str) -> tuple[str, str]:
+    """(case with the dropout, the same case without it) of liu_cases at encoder ``rate`` ("" for 100 Hz)."""
+    return (f"{rate}_dropout", rate) if rate else ("encoder_dropout", "none")
+
+
 def _stale_rows(run: Run) -> tuple[np.ndarray, int, float]:
     """(stale rows, last fresh row before the dropout, time of the first pair after it) of ``run`` with the
     encoder dropout DROPOUT: the rows before the first encoder pair, and the rows after the last pair before
@@ -474,7 +480,7 @@ def test_liu_icr_is_held_through_an_encoder_dropout(name, rate, liu_est, liu_cas
     dropout the estimate is that of the run without it (the rule changes nothing while encoders report).
     The held wheel speeds are no measurement: wl, wr and the slips (10) are NaN at the stale steps.
     At 100 Hz and at 50 Hz encoders (whose first sample after the dropout is not at its end)."""
-    case, clean_case = (f"{rate}_dropout", rate) if rate else ("encoder_dropout", "none")
+    case, clean_case = _dropout_cases(rate)
     run = liu_cases[case][0]
     est, clean = liu_est(name, case), liu_est(name, clean_case)
     t = run.t
@@ -518,7 +524,7 @@ def test_liu_dead_reckoning_flags_an_encoder_dropout(name, rate, liu_cases):
     """Dead reckoning integrates the last wheel speeds through a dropout (it has nothing better): the
     pose is finite and equals, at the end of the dropout, the integral of the held speeds; the stale
     steps report NaN wheel speeds and slips, and info counts them."""
-    case, clean_case = (f"{rate}_dropout", rate) if rate else ("encoder_dropout", "none")
+    case, clean_case = _dropout_cases(rate)
     run, clean_run = liu_cases[case][0], liu_cases[clean_case][0]
     m = registry.get(name)
     if name == "liu2020.icr":
