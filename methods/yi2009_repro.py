@@ -802,6 +802,8 @@ NEES_ABLATIONS: dict[str, tuple[dict[str, Any], tuple[int, ...]]] = {
     "no_vy_gate": ({"vy_gate": False}, (3,)),
     "constant_vy_sigma": ({"vy_per_yaw_rate": False}, (3,)),
     "adaptive_r": ({"adaptive_white": 2.0, "odometer_window": 0.0}, (1, 2, 3)),
+    "paper_start_yaw": ({"start_yaw_sd": None}, (1, 2, 3)),
+    "reference_noise_unturned": ({"reference_turn_noise": False}, (1, 2, 3)),
 }
 # Truth-informed attribution (full mode only; a diagnostic, never a method, never judged): the consistent filter with
 # the per-step v_x row (TOLD_BASE, where a white part acts) told, per scored path, that path's own v_x row error levels

@@ -1372,6 +1372,22 @@ def test_consistent_slip_state_not_overconfident_where_the_fed_back_slip_is():
     assert nees["state"] <= stats.chi2.ppf(0.999, 2) and nees["state"] < nees["feedback"]
 
 
+def test_start_yaw_sd_is_carried_unchanged_where_heading_is_unobserved(consistent_v2):
+    """A run at rest (no row carries heading: v_B = C^T V does not depend on yaw at V = 0): the yaw variance is its
+    P0 plus the gyro's accumulated process noise, so the consistent filter's 1e-4 rad start and the paper's 1 mrad
+    differ by p0_yaw^2 - 1e-8 rad^2 at every step (closed form, the P0 offset is neither observed nor forgotten;
+    (*) to 0.1 %: the estimated velocity is not exactly 0, measured 7e-5 relative); start_yaw_sd=None keeps the paper's p0_yaw; a bad value is refused with its name."""
+    run = synthetic_run("rest", 31, knots_rpm=[(0, 0, 0), (10, 0, 0)])
+    assert consistent_v2.start_yaw_sd == 1e-4
+    p_start = registry.estimate(consistent_v2, run).info["P"][:, 8, 8]
+    p_paper = registry.estimate(dataclasses.replace(consistent_v2, start_yaw_sd=None), run).info["P"][:, 8, 8]
+    assert p_start[0] == pytest.approx(1e-8, rel=1e-9) and p_paper[0] == pytest.approx(EkfParams().p0_yaw**2, rel=1e-9)
+    np.testing.assert_allclose(p_paper - p_start, EkfParams().p0_yaw**2 - 1e-8, rtol=1e-3)  # (*)
+    assert p_start[-1] > 1.5 * p_start[0]  # the gyro's noise accumulates on top
+    with pytest.raises(ValueError, match="start_yaw_sd"):
+        ekf_v2_consistent(start_yaw_sd=0.0)
+
+
 def test_consistent_needs_calibration_and_refuses_its_calibration_runs(consistent_v2, consistent_runs):
     run = synthetic_run("circle", 22)
     with pytest.raises(RunError, match="calibrate first"):

@@ -521,7 +521,8 @@ def test_told_noise_sets_the_v_x_row_levels_and_nothing_else():
     run = synthetic_run("straight", 3, Sensors(lam0=0.02))
     gm = GaussMarkov(sigma=0.003, tau=2.0, white=0.01)
     model = Yi2009EkfConsistent(variant=1, traction_slip=False, store_covariance=True, store_linearisation=True,
-                                calibrated=True, gm_x=gm, odometer_window=0.0)
+                                calibrated=True, gm_x=gm, odometer_window=0.0,
+                                start_yaw_sd=None)  # the paper's 1 mrad: white / 4 -> 0.85 x (0.92 x at 0.1 mrad)
     assert Y.told_noise(dataclasses.replace(model, odometer_window=0.2)).odometer_window == 0.0  # per step
     same = Y.told_noise(model, slip=gm.sigma, white=gm.white)
     assert same.gm_x == gm and not same.store_linearisation and Y.told_noise(model).gm_x == gm
