@@ -131,7 +131,8 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     on the step run, where the position noise accounts for 0.009; without it the v_x row's white part came out
     0.018 m/s against the truth's 0.010-0.011) and whose lateral noise includes the smoothed reference yaw's
     (:func:`reference_velocity_noise_mean_var`; with the position noise's rotation into the turning
-    body frame, which does not telescope over a long mean: ``reference_turn_noise``).  Earlier versions, measured and replaced (see the nees note for their numbers): white R
+    body frame, which does not telescope over a long mean: ``reference_turn_noise``).  Earlier versions, measured
+    and replaced (see the nees note for their numbers): white R
     inflated by (1 + rho)/(1 - rho) (R of metres per second wherever the calibration data contain a bias); the
     slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time); skipping
     the rows at the clip (the lock stays, position RMS 14 m); a two-lag autocovariance fit of sigma, tau (unstable
@@ -1694,8 +1695,9 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
        filter's time grid; steps without a fused row, before ``settle`` s or outside the reference are NaN.  The
        known parts of the residual are subtracted at every window: the reference derivative's noise
        (:func:`reference_velocity_noise_mean_var`, rotated into the body frame at the run's gyro yaw rates on the
-       used steps; not rotated with ``model.reference_turn_noise`` False) and, with quantisation states, the encoder quantisation
-       u_k - u_(k-1) (variance 2 enc_quant^2 / W^2 for a W-sample mean: it telescopes).  The white part is floored
+       used steps; not rotated with ``model.reference_turn_noise`` False) and, with quantisation states, the
+       encoder quantisation u_k - u_(k-1) (variance 2 enc_quant^2 / W^2 for a W-sample mean: it telescopes).
+       The white part is floored
        at a physical bound: v_x row :func:`encoder_white_floor` (without quantisation states; with them the
        quantisation is the states'), v_y row gyro_noise x the RMS of the row's gain from the yaw rate (S(gamma),
        plus :meth:`IcrCorrection.gyro_gain` with the S correction) on the moving steps.  Steps with the wheels at rest
