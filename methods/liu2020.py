@@ -552,6 +552,7 @@ def _icr_update_allowed(t: np.ndarray, zg: np.ndarray, timeout: float | None) ->
     return (t - last) <= timeout
 
 
+GAP_INTERVALS = 1.5  # a sample older / a gap longer than this many median sample intervals is a dropout
 FRESH_SLACK = 1e-9  # [s] slack of _encoder_fresh's age limit against the rounding of the log times
 
 
@@ -566,7 +567,7 @@ def _encoder_fresh(t: np.ndarray, enc_ok: np.ndarray) -> np.ndarray:
     when = np.where(enc_ok, t, np.nan)
     ts = t[enc_ok]
     period = float(np.median(np.diff(ts))) if ts.size >= 2 else 0.0
-    return (t - _ffill(when, before=-np.inf)) <= 1.5 * period + FRESH_SLACK
+    return (t - _ffill(when, before=-np.inf)) <= GAP_INTERVALS * period + FRESH_SLACK
 
 
 def _within_sampling(ts: np.ndarray, tq: np.ndarray) -> np.ndarray:
@@ -577,7 +578,7 @@ def _within_sampling(ts: np.ndarray, tq: np.ndarray) -> np.ndarray:
     period = float(np.median(np.diff(ts)))
     i = np.clip(np.searchsorted(ts, tq), 1, ts.size - 1)
     inside = (tq >= ts[0]) & (tq <= ts[-1])
-    return inside & ((ts[i] - ts[i - 1] <= 1.5 * period) | (tq == ts[i]) | (tq == ts[i - 1]))
+    return inside & ((ts[i] - ts[i - 1] <= GAP_INTERVALS * period) | (tq == ts[i]) | (tq == ts[i - 1]))
 
 
 def _icr_window_fit(X: np.ndarray, wl: np.ndarray, wr: np.ndarray, r: float, aided: np.ndarray, t: np.ndarray,

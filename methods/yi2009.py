@@ -1763,8 +1763,7 @@ def identify_yi_noise(runs: Sequence[Run], model: "Yi2009Ekf", settle: float = 1
                                    reference_velocity_noise_mean_var(run, dt_run, speed_ms=speed_ms,
                                                                      yaw_rates=turn_rates), m,
                                    m & _moving(enc, r, model.params.min_wheel_speed),
-                                   {k_: v_ for k_, v_ in model.filter_options(run, t, acc, enc).items()
-                                    if k_ not in ("odo_window", "odo_sd")},  # the rows of every step
+                                   model.filter_options(run, t, acc, enc, odometer=False),  # the rows of every step
                                    yaw_rate_scale(gyr, t),
                                    x0, p0))
     dt = float(np.median([c.dt for c in cal]))
@@ -2030,10 +2029,12 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     def calibration_requires(self) -> frozenset[str]:
         return frozenset(REF_CHANNELS)
 
-    def filter_options(self, run: Run, t: np.ndarray, acc: np.ndarray, enc: np.ndarray) -> dict[str, Any]:
+    def filter_options(self, run: Run, t: np.ndarray, acc: np.ndarray, enc: np.ndarray, odometer: bool = True
+                       ) -> dict[str, Any]:
         """The run_filter_gm options of this configuration for ``run`` (the quantisation std from its encoder spec,
         the smoothed wheel speeds of gamma (40) from its encoders ``enc`` and the v_x row's traction transients from
-        its accelerometer ``acc`` at the filter steps ``t``, as :func:`align_inputs` gives them)."""
+        its accelerometer ``acc`` at the filter steps ``t``, as :func:`align_inputs` gives them).  ``odometer``
+        False: without the odometer options, the v_x row of every step (what :func:`identify_yi_noise` reads)."""
         skip = traction_transient(acc, t, self.vx_gate)
         dt = float(np.median(np.diff(t)))
         return {"slip_rows": self.slip_rows, "roll_model_jacobian": self.roll_model_jacobian,
@@ -2042,7 +2043,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
                 "vy_skip": skip if self.vy_gate and self.variant == 3 else None,
                 "adaptive_vx": max(1, int(round(self.adaptive_white / dt))) if self.adaptive_white else 0,
                 **({"odo_window": max(1, int(round(self.odometer_window / dt))),
-                    "odo_sd": encoder_odometer_sd(run)} if self.odometer_window else {})}
+                    "odo_sd": encoder_odometer_sd(run)} if self.odometer_window and odometer else {})}
 
     def gamma_speeds(self, t: np.ndarray, enc: np.ndarray) -> np.ndarray | None:
         """The wheel speeds of gamma (40) and of the S correction (scheme 3 with the slip state and
@@ -2057,20 +2058,14 @@ class Yi2009EkfConsistent(Yi2009Ekf):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not (isinstance(self.gamma_smoothing, (int, float)) and math.isfinite(self.gamma_smoothing)
-                and self.gamma_smoothing >= 0):
-            raise ValueError(f"{self.name}: gamma_smoothing = {self.gamma_smoothing!r}: must be finite and >= 0 [s]")
-        if not (isinstance(self.vx_gate, (int, float)) and math.isfinite(self.vx_gate) and self.vx_gate >= 0):
-            raise ValueError(f"{self.name}: vx_gate = {self.vx_gate!r}: must be finite and >= 0 [m/s^2]")
-        if not (isinstance(self.adaptive_white, (int, float)) and math.isfinite(self.adaptive_white)
-                and self.adaptive_white >= 0):
-            raise ValueError(f"{self.name}: adaptive_white = {self.adaptive_white!r}: must be finite and >= 0 [s]")
+        for key, unit in (("gamma_smoothing", "s"), ("vx_gate", "m/s^2"), ("adaptive_white", "s"),
+                          ("odometer_window", "s")):
+            v = getattr(self, key)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{self.name}: {key} = {v!r}: must be finite and >= 0 [{unit}]")
         if self.start_yaw_sd is not None and not (isinstance(self.start_yaw_sd, (int, float))
                                                   and math.isfinite(self.start_yaw_sd) and self.start_yaw_sd > 0):
             raise ValueError(f"{self.name}: start_yaw_sd = {self.start_yaw_sd!r}: must be None or finite and > 0 [rad]")
-        if not (isinstance(self.odometer_window, (int, float)) and math.isfinite(self.odometer_window)
-                and self.odometer_window >= 0):
-            raise ValueError(f"{self.name}: odometer_window = {self.odometer_window!r}: must be finite and >= 0 [s]")
         if self.traction_slip and self.slip_rows != "state":
             raise ValueError(f"{self.name}: traction_slip needs slip_rows='state' (got {self.slip_rows!r}): with the "
                              "fed-back slip (13)-(14) the row already carries the filter's slip estimate")

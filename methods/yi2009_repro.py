@@ -1013,7 +1013,8 @@ def told_noise(model: Yi2009EkfConsistent, slip: float | None = None, white: flo
         gm = replace(gm, sigma=max(float(slip), GM_NEGLIGIBLE_SIGMA))
     if white is not None:
         gm = replace(gm, white=max(float(white), ADAPTIVE_R_FLOOR), white_floored=False)
-    return registry.derive(model, gm_x=gm, store_linearisation=False, odometer_window=0.0)
+    return registry.derive(model, gm_x=gm, store_linearisation=False,
+                           **NEES_ABLATIONS[TOLD_BASE.removeprefix("ablation_")][0])
 
 
 def _finite_rms(per_key: Mapping[str, Sequence[float]]) -> dict[str, float]:
