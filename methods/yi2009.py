@@ -131,7 +131,8 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     on the step run, where the position noise accounts for 0.009; without it the v_x row's white part came out
     0.018 m/s against the truth's 0.010-0.011) and whose lateral noise includes the smoothed reference yaw's
     (:func:`reference_velocity_noise_mean_var`; with the position noise's rotation into the turning
-    body frame, which does not telescope over a long mean: ``reference_turn_noise``).  Earlier versions, measured
+    body frame, which does not telescope over a long mean, and its division by the derivative's turn gain:
+    ``reference_turn_noise``).  Earlier versions, measured
     and replaced (see the nees note for their numbers): white R
     inflated by (1 + rho)/(1 - rho) (R of metres per second wherever the calibration data contain a bias); the
     slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time); skipping
@@ -687,15 +688,21 @@ def _savgol_body_velocity(tr: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.
     xd, yd = savgol_filter(xs, deriv=1, **kw), savgol_filter(ys, deriv=1, **kw)
     psi = savgol_filter(yaws, deriv=0, **kw)
     psid = savgol_filter(yaws, deriv=1, **kw)
-    # On a turn at yaw rate w the derivative filter returns gain(w) = sum_k c_k sin(w t_k) / w of the
-    # true velocity (antisymmetric c_k: no phase shift; ~2.5 % low at 1 rad/s over 1 s): divide it out.
-    tk = (np.arange(win) - win // 2) * h
-    w = np.where(np.abs(psid) > 1e-6, psid, 1e-6)
-    gain = (np.sin(np.outer(w, tk)) @ coef) / w
+    gain = savgol_turn_gain(psid, coef, h)  # divided out: exact for a steady turn
     c, s = np.cos(psi), np.sin(psi)
     vx, vy = (c * xd + s * yd) / gain, (-s * xd + c * yd) / gain
     inside = (t >= tg[0]) & (t <= tg[-1])
     return np.where(inside, np.interp(t, tg, vx), np.nan), np.where(inside, np.interp(t, tg, vy), np.nan)
+
+
+def savgol_turn_gain(w: ArrayLike, coef: np.ndarray, h: float) -> np.ndarray:
+    """gain(w) = sum_k c_k sin(w t_k) / w: the share of the true velocity that the Savitzky-Golay first-derivative
+    coefficients ``coef`` (window centred, sample period ``h`` [s]) return on a turn at yaw rate ``w`` [rad/s]
+    (antisymmetric c_k: no phase shift; 1 on a straight line, ~2.5 % low at 1 rad/s over 1 s)."""
+    tk = (np.arange(coef.size) - coef.size // 2) * h
+    w = np.asarray(w, float)
+    w = np.where(np.abs(w) > 1e-6, w, 1e-6)
+    return (np.sin(np.multiply.outer(w, tk)) @ coef) / w
 
 
 REFERENCE_BIAS_SMOOTHING = 0.1  # [s] moving mean of the encoder speed in reference_smoothing_bias
@@ -746,7 +753,10 @@ def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, 
     ``yaw_rates`` [rad/s] (the yaw rates of the steps the means are taken over; None: no turning): the position
     noise's derivative is isotropic in the world frame and is rotated into the body frame, which turns at w
     against it, so its per-axis autocovariance there is acov(tau) cos(w tau) (E[R(-psi(t)) n(t) n(t+tau)^T
-    R(psi(t+tau))] = acov(tau) R(w tau) at a steady w), averaged over the steps.  A derivative's coefficients
+    R(psi(t+tau))] = acov(tau) R(w tau) at a steady w), and divided, like the velocity, by the derivative's turn gain
+    (:func:`savgol_turn_gain`), acov(tau) cos(w tau) / gain(w)^2, averaged over the steps (on a steady turn at
+    1.3 rad/s, 200 seeds of the closed-form run: without the gain the single-sample variance was 4-13 % above the
+    formula, as 1 / gain^2 = 1.09 predicts; on a straight line 2-5 % below).  A derivative's coefficients
     sum to zero, so without turning the noise of a long mean telescopes (variance ~ 1/W^2); in a turn it does not
     (~ the derivative's spectrum at w, ~ 1/W): measured on the calibration runs against the truth, the reference's
     v_y error at 2 / 4 s means in turns was 2.36 / 1.41 mm/s where the formula without turning gives 2.19 /
@@ -757,7 +767,8 @@ def reference_velocity_noise_mean_var(run: Run, dt: float, window: float = 1.0, 
         w = np.asarray(yaw_rates, float)
         w = w[np.isfinite(w)]
         if w.size:
-            ac_ref = ac_ref * np.cos(np.outer(np.arange(ac_ref.size) * h, w)).mean(axis=1)
+            ac_ref = ac_ref * (np.cos(np.outer(np.arange(ac_ref.size) * h, w)) / savgol_turn_gain(w, coef, h) ** 2
+                               ).mean(axis=1)
     if speed_ms > 0:
         from scipy.signal import savgol_coeffs
 
@@ -1988,9 +1999,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
       does not enter the velocity);
     * ``reference_turn_noise`` (identification, :func:`identify_yi_noise`): the reference's velocity noise that is
       subtracted from the rows' residuals is rotated into the turning body frame
-      (:func:`reference_velocity_noise_mean_var` with the yaw rates); without it the v_y row's sigma was 0.00257 m
-      per rad/s (0.00163 with it, 0.00157 fitted on the same rows against the truth) and the v_x row's 0.00075 m/s
-      (0.00051);
+      (:func:`reference_velocity_noise_mean_var` with the yaw rates) and divided by the derivative's turn gain;
+      without it the v_y row's sigma was 0.00257 m per rad/s (0.00163 rotated, 0.00156 rotated and divided by the
+      gain; 0.00157 fitted on the same rows against the truth) and the v_x row's 0.00075 m/s (0.00051, 0.00048);
     * sigma_3 of the v_z row (11), the position process noise and the other P0 entries are the paper's.
     :meth:`calibrate` fits S(gamma) (41) on the runs given (scheme 3, as :meth:`Yi2009Ekf.calibrate`, when
     ``refit_s_gamma``; the reproduction passes the paper's fit on Yi's identification runs and sets it False) and

@@ -74,7 +74,8 @@ Choices (each one stated where the paper is silent or the testbed differs)
   v_y row error, the v_x row fused as the odometer's displacement over 0.2 s windows, roll Jacobian at the
   modelled v_By, trapezoidal IMU integration, scheme 3's gamma from a 0.1 s
   trailing mean of the wheel speeds, IMU noise from the rest at the start, yaw P0 1e-4 rad (the start heading
-  is the frame), the reference's velocity noise rotated into the turning body frame in the identification; an
+  is the frame), the reference's velocity noise rotated into the turning body frame (and divided by the
+  derivative's turn gain) in the identification; an
   ablation switches
   each choice in full mode, ``NEES_ABLATIONS``) identified on the dedicated calibration runs
   ``Settings.nees_calibration`` (``scenarios/yi_calib.toml``, gradual command changes, and
@@ -1364,7 +1365,8 @@ def nees(ctx: Any) -> dict[str, float]:
                   "error with a constant Gauss-Markov sigma instead of one proportional to the 0.5 s mean |yaw rate|; "
                   "paper_start_yaw: the paper's yaw P0 (1 mrad) instead of 1e-4 rad; reference_noise_unturned: the "
                   "identification subtracts the reference's velocity noise as on a straight line (not rotated into the "
-                  "turning body frame, where a derivative's noise no longer telescopes over a long mean); "
+                  "turning body frame, where a derivative's noise no longer telescopes over a long mean, nor divided by the "
+                  "derivative's turn gain); "
                   "adaptive_r: the per-step v_x row's white R estimated online from the filter's post-fit residuals "
                   "over the "
                   f"last {NEES_ABLATIONS['adaptive_r'][0]['adaptive_white']:g} s of rows (residual-based covariance "

@@ -459,14 +459,14 @@ def _dropout_cases(rate: str) -> tuple[str, str]:
 def _stale_rows(run: Run) -> tuple[np.ndarray, int, float]:
     """(stale rows, last fresh row before the dropout, time of the first pair after it) of ``run`` with the
     encoder dropout DROPOUT: the rows before the first encoder pair, and the rows after the last pair before
-    the dropout has aged beyond 1.5 median sample intervals (methods.liu2020.FRESH_SLACK of slack) until the
+    the dropout has aged beyond 1.5 median sample intervals (methods.liu2020.TIME_SLACK of slack) until the
     first pair after it (whatever the encoder rate: that pair need not fall on the dropout's end)."""
-    from methods.liu2020 import FRESH_SLACK
+    from methods.liu2020 import TIME_SLACK
 
     t = run.t
     enc_t = t[np.isfinite(run["enc_wl"]) & np.isfinite(run["enc_wr"])]
     last = enc_t[enc_t < DROPOUT[0]].max()
-    limit = 1.5 * np.median(np.diff(enc_t)) + FRESH_SLACK
+    limit = 1.5 * np.median(np.diff(enc_t)) + TIME_SLACK
     back = enc_t[enc_t >= DROPOUT[1]].min()
     aged = (t - last > limit) & (t < back)
     return aged | (t < enc_t[0]), int(np.flatnonzero((t >= last) & (t - last <= limit))[-1]), float(back)
