@@ -1463,7 +1463,7 @@ def test_reference_noise_in_a_turn_does_not_telescope():
     """Steady turn (150/60 rpm, yaw rate ~ -1.3 rad/s), 40 seeds: the variance of the W-sample means of the
     reference's body-frame velocity error (truth closed form) on both axes matches reference_velocity_noise_mean_var
     given the run's yaw rates within 12 % for single samples and 2 and 4 s windows (measured data : formula
-    0.96-1.00; in five blocks of 40 seeds 0.94-1.13, so 40 seeds resolve about 10 %).  The position noise's
+    0.96-1.00; in five blocks of 40 seeds 0.93-1.13, so 40 seeds resolve about 10 %).  The position noise's
     derivative, rotated into the turning body frame (per-axis autocovariance acov(tau) cos(w tau)), no longer
     telescopes over a long mean; the formula without the yaw rates (a straight line's) is at least 40 % low there
     (measured data : formula 1.7-3.3).  The velocity, and so its noise, is divided by the derivative's turn gain:
