@@ -556,33 +556,37 @@ GAP_INTERVALS = 1.5  # a sample older / a gap longer than this many median sampl
 TIME_SLACK = 1e-9  # [s] slack of the two gap rules against the rounding of the log times
 
 
+def _gap_limit(ts: np.ndarray) -> float:
+    """[s] the longest age / interval of the samples at times ``ts`` that is not a dropout: ``GAP_INTERVALS``
+    median intervals plus ``TIME_SLACK`` (only the slack with fewer than 2 samples)."""
+    period = float(np.median(np.diff(ts))) if ts.size >= 2 else 0.0
+    return GAP_INTERVALS * period + TIME_SLACK
+
+
 def _encoder_fresh(t: np.ndarray, enc_ok: np.ndarray) -> np.ndarray:
     """(T,) bool: is the latest encoder pair at step k at most 1.5 of the encoders' median sample
     interval old?  Eqs. (2), (3), (5) give the ICR from the posterior velocities and the wheel speeds
     of the same instant; with the wheel speeds stale (an encoder dropout) they are no observation of
     the ICR, which is then held (the paper does not treat dropouts).  Between the samples of a
     slower encoder the held pair is fresh, as before; before the first pair there is none.  (The age
-    limit carries 1e-9 s of slack: at half the row rate, 1.5 intervals fall on a row, where the
-    rounding of the times would otherwise decide.)"""
+    limit is :func:`_gap_limit`, with 1e-9 s of slack: at half the row rate, 1.5 intervals fall on a row,
+    where the rounding of the times would otherwise decide.)"""
     when = np.where(enc_ok, t, np.nan)
-    ts = t[enc_ok]
-    period = float(np.median(np.diff(ts))) if ts.size >= 2 else 0.0
-    return (t - _ffill(when, before=-np.inf)) <= GAP_INTERVALS * period + TIME_SLACK
+    return (t - _ffill(when, before=-np.inf)) <= _gap_limit(t[enc_ok])
 
 
 def _within_sampling(ts: np.ndarray, tq: np.ndarray) -> np.ndarray:
     """(len(tq),) bool: does each query time lie between two consecutive samples ``ts`` at most 1.5 of
     their median interval apart (or on a sample)?  False in a gap (a dropout) and outside the samples.
-    (The limit carries ``TIME_SLACK`` like :func:`_encoder_fresh`'s: a sensor at 3 samples per 7 log rows has
-    intervals of 2 and 3 rows, median 2, and 3 rows is exactly 1.5 intervals, where the rounding of the times
-    would otherwise decide: without the slack 150-168 of 2096 query times were refused at start times 0, 0.3 and
-    3600.1 s and none at 12.345 or 1000 s.)"""
+    (The limit is :func:`_gap_limit`, as :func:`_encoder_fresh`'s, with its ``TIME_SLACK``: a sensor at 3 samples
+    per 7 log rows has intervals of 2 and 3 rows, median 2, and 3 rows is exactly 1.5 intervals, where the
+    rounding of the times would otherwise decide: without the slack 150-168 of 2096 query times were refused at
+    start times 0, 0.3 and 3600.1 s and none at 12.345 or 1000 s.)"""
     if ts.size < 2:
         return np.isin(tq, ts)
-    period = float(np.median(np.diff(ts)))
     i = np.clip(np.searchsorted(ts, tq), 1, ts.size - 1)
     inside = (tq >= ts[0]) & (tq <= ts[-1])
-    return inside & ((ts[i] - ts[i - 1] <= GAP_INTERVALS * period + TIME_SLACK) | (tq == ts[i]) | (tq == ts[i - 1]))
+    return inside & ((ts[i] - ts[i - 1] <= _gap_limit(ts)) | (tq == ts[i]) | (tq == ts[i - 1]))
 
 
 def _icr_window_fit(X: np.ndarray, wl: np.ndarray, wr: np.ndarray, r: float, aided: np.ndarray, t: np.ndarray,
