@@ -14,6 +14,14 @@ of the filter itself, e_k = A_k e_(k-1) + w_k with A_k = (I - K_k H_k) F_k and C
 filter's P_k (covariance analysis: Gelb 1974 Sec. 7.2 / Maybeck 1979 Sec. 6.8).  Errors drawn from it are, by
 construction, the errors of a filter whose model is true; their NEES test statistics are the null distribution
 against which the observed ones are judged (a parametric bootstrap of the test).
+
+Shared model errors.  Bar-Shalom's band assumes N independent runs: every random quantity of the filter's model is
+drawn afresh in each.  A benchmark's seeds repeat one path and change only the sensor noise, so whatever the filter
+models as a random process but is in truth a deterministic function of the path (a Gauss-Markov state for the slip
+or the kinematic model's misfit) is one realisation, the same in all N runs; averaging over the seeds does not
+average it.  ``Linearisation.shared`` carries the loading of that part of the noise, and :func:`null_nees` with a
+``shared_seed`` draws it once per experiment for all N runs (the independent part per run), which is the null
+distribution of the experiment actually run.
 """
 from __future__ import annotations
 
@@ -25,12 +33,17 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Linearisation:
-    """Per-step error recursion of a filter run: ``a`` (n, nx, nx) = (I - K H) F, ``c`` (n, nx, nx) its noise
-    covariance, ``p`` (n, nx, nx) the filter's posterior covariance (``a[0]`` unused: e_0 ~ N(0, p[0]))."""
+    """Per-step error recursion of a filter run: ``a`` (n, nx, nx) = (I - K H) F, ``c`` (n, nx, nx) the covariance
+    of its run-own noise, ``p`` (n, nx, nx) the filter's posterior covariance (``a[0]`` unused: e_0 ~ N(0, p[0])).
+    ``shared`` (n, nx, m), optional: the loading of m unit-variance noises that every run of an experiment shares
+    (the model errors the runs repeat; module docstring): e_k = a_k e_(k-1) + c_k^(1/2) z_k + shared_k u_k, so
+    p_k = a_k p_(k-1) a_k^T + c_k + shared_k shared_k^T, and e_0 = (p_0 - shared_0 shared_0^T)^(1/2) z_0 +
+    shared_0 u_0."""
 
     a: np.ndarray
     c: np.ndarray
     p: np.ndarray
+    shared: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.p.shape[0]
@@ -39,6 +52,10 @@ class Linearisation:
             if arr.ndim != 3 or arr.shape[0] != n or arr.shape[1] != arr.shape[2] or not np.isfinite(arr).all():
                 raise ValueError(f"Linearisation.{name}: shape {arr.shape}, must be a finite (n, nx, nx) stack "
                                  f"with n = {n}")
+        sh = self.shared
+        if sh is not None and (sh.ndim != 3 or sh.shape[:2] != self.p.shape[:2] or not np.isfinite(sh).all()):
+            raise ValueError(f"Linearisation.shared: shape {sh.shape}, must be a finite (n, nx, m) stack with "
+                             f"(n, nx) = {self.p.shape[:2]}")
 
 
 def _psd_sqrt(c: np.ndarray) -> np.ndarray:
@@ -47,21 +64,31 @@ def _psd_sqrt(c: np.ndarray) -> np.ndarray:
     return v * np.sqrt(np.maximum(lam, 0.0))[..., None, :]
 
 
-def simulate_nees(lin: Linearisation, block: slice, mask: np.ndarray, n_draws: int, rng: np.random.Generator
-                  ) -> np.ndarray:
+def simulate_nees(lin: Linearisation, block: slice, mask: np.ndarray, n_draws: int, rng: np.random.Generator,
+                  shared_rng: np.random.Generator | None = None) -> np.ndarray:
     """(n_draws, mask.sum()) NEES of the state ``block`` at the masked steps for ``n_draws`` error sequences of the
-    recursion of ``lin`` (vectorised over the draws; the NEES uses the filter's own P block)."""
+    recursion of ``lin`` (vectorised over the draws; the NEES uses the filter's own P block).  The run-own noise is
+    drawn from ``rng``; the shared noise of ``lin.shared`` from ``shared_rng`` (give every run of an experiment a
+    generator in the same state: draw j of each run then shares its model errors), or from ``rng`` when None (the
+    runs independent in everything)."""
     n, nx, _ = lin.p.shape
     if mask.shape != (n,):
         raise ValueError(f"simulate_nees: mask of shape {mask.shape} for {n} steps")
+    sh = lin.shared
+    srng = rng if shared_rng is None else shared_rng
     roots = _psd_sqrt(lin.c)
-    e = _psd_sqrt(lin.p[:1])[0] @ rng.standard_normal((nx, n_draws))
+    p0 = lin.p[0] if sh is None else lin.p[0] - sh[0] @ sh[0].T
+    e = _psd_sqrt(p0[None])[0] @ rng.standard_normal((nx, n_draws))
+    if sh is not None:
+        e = e + sh[0] @ srng.standard_normal((sh.shape[2], n_draws))
     p_inv = np.linalg.inv(lin.p[:, block, block][mask])
     out = np.empty((n_draws, int(mask.sum())))
     j = 0
     for k in range(n):
         if k > 0:
             e = lin.a[k] @ e + roots[k] @ rng.standard_normal((nx, n_draws))
+            if sh is not None:
+                e = e + sh[k] @ srng.standard_normal((sh.shape[2], n_draws))
         if mask[k]:
             eb = e[block]
             out[:, j] = np.einsum("id,ij,jd->d", eb, p_inv[j], eb)
@@ -102,9 +129,15 @@ class NullNees:
 
 
 def null_nees(lins: Sequence[Linearisation], block: slice, masks: Sequence[np.ndarray], band: tuple[float, float],
-              n_experiments: int, rng: np.random.Generator) -> NullNees:
+              n_experiments: int, rng: np.random.Generator, shared_seed: int | Sequence[int] | None = None
+              ) -> NullNees:
     """Null distribution of the test statistics for experiments of N = len(lins) runs, run i with the recursion of
-    ``lins[i]`` (each seed's own linearisation), the N-run average taken step by step over the common length."""
+    ``lins[i]`` (each seed's own linearisation), the N-run average taken step by step over the common length.
+    ``shared_seed``: the runs' shared noise (``Linearisation.shared``) is drawn from ``default_rng(shared_seed)``
+    afresh for each run, i.e. one draw per experiment; None: from ``rng``, independent between the runs."""
     if not lins or len(lins) != len(masks):
         raise ValueError(f"null_nees: {len(lins)} linearisations for {len(masks)} masks")
-    return NullNees.from_draws([simulate_nees(lin, block, m, n_experiments, rng) for lin, m in zip(lins, masks)], band)
+    return NullNees.from_draws(
+        [simulate_nees(lin, block, m, n_experiments, rng,
+                       None if shared_seed is None else np.random.default_rng(shared_seed))
+         for lin, m in zip(lins, masks)], band)

@@ -1188,8 +1188,10 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     ``vx_skip``) breaks the window: it restarts after that step, unfused.  Stochastic cloning of the odometer
     displacement (Roumeliotis & Burdick 2002, ICRA) reduced to the one coordinate the row measures.
     ``store_lin``: also return the filter's linearised error recursion (``FilterResult.lin``, a
-    :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q (I - K H)^T + K R K^T, P_k) for
-    the null distribution of the NEES test (not with quantisation states).
+    :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q' (I - K H)^T + K R K^T, P_k,
+    with Q' = Q without the Gauss-Markov states' driving noise, which is the ``shared`` loading (I - K H) G_b Q_b^(1/2)
+    instead, and at k = 0 their stationary sd: the rows' errors b are functions of the path, the same in every seed
+    of a scenario) for the null distribution of the NEES test (not with quantisation states).
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
@@ -1233,6 +1235,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     lin_a: list[np.ndarray] = []
     lin_c: list[np.ndarray] = []
     lin_p: list[np.ndarray] = []
+    lin_s: list[np.ndarray] = []
     r, hw = float(wheel_radius), 0.5 * float(track)
     use_slip, use_vy = variant >= 2, variant == 3
     gms = () if gm_x is None else (gm_x, gm_y) if use_vy else (gm_x,)
@@ -1478,8 +1481,11 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             K = potrs(L, PHt.T, lower=1)[0].T  # (26d): W = P H^T S^-1
             IKH = Ix - K @ H
             if store_lin:  # error recursion e_k = (I - K H)(F e + w) + K v, with P the prior F P F^T + Q here
-                lin_a.append(IKH @ F)
-                lin_c.append(IKH @ Qk @ IKH.T + (K * r_k) @ K.T)
+                lin_a.append(IKH @ F)  # the Gauss-Markov states' driving noise (Q diagonal) apart: shared by seeds
+                q_run = np.diag(Qk).copy()
+                q_run[9:9 + nb] = 0.0
+                lin_c.append((IKH * q_run) @ IKH.T + (K * r_k) @ K.T)
+                lin_s.append(IKH[:, 9:9 + nb] * np.sqrt(np.diag(Qk)[9:9 + nb]))
             P = IKH @ P @ IKH.T + (K * r_k) @ K.T  # Joseph form (26f)
             P = 0.5 * (P + P.T)
             kin = K @ innov
@@ -1521,6 +1527,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                         lin_a[-1][iod, :] = 0.0
                         lin_c[-1][iod, :] = 0.0
                         lin_c[-1][:, iod] = 0.0
+                        lin_s[-1][iod, :] = 0.0
             if not math.isfinite(px + py + pz + vx + vy + vz + phi + th + psi + sum(b)):
                 raise FilterDivergence(where, k, t_l[k], "non-finite state after the update")
             psi = (psi + math.pi) % two_pi - math.pi  # wrap the yaw state
@@ -1547,15 +1554,16 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             covs.append(P)
         if store_lin:
             lin_p.append(P)
-            if k == 0:
+            if k == 0:  # e_0 ~ N(0, P0): the Gauss-Markov states' part of it is shared
                 lin_a.append(Ix)
                 lin_c.append(np.zeros((nx, nx)))
+                lin_s.append(Ix[:, 9:9 + nb] * np.sqrt(np.diag(P)[9:9 + nb]))
 
     o = np.array(out, dtype=float).reshape(n, 18 + nb)
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
     lin = None
     if store_lin:
-        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p))
+        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p), np.array(lin_s) if nb else None)
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
                        np.array(covs) if store_cov else None, lin, r_vx)
     return res, o[:, 18:], o[:, 16:18]

@@ -819,6 +819,7 @@ TOLD_VARIANTS = (1, 3)
 _NEES_KEY = "_yi2009_nees"
 NULL_DRAWS = {True: 50, False: 400}  # simulated experiments of the NEES null distribution (quick / full)
 NULL_SEED = 20090  # root of the null simulation's random streams (one per path, scheme and seed)
+NULL_SHARED_STREAM = 2**32  # last entropy word of the stream shared by a path's seeds (never a seed number)
 NULL_ALPHA = 0.05  # family-wise level of the null test over the consistent cells (Bonferroni)
 
 
@@ -941,9 +942,12 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
             for (cfg_name, v), m in methods.items():
                 est = registry.estimate(m, run)
                 if "lin" in est.info:  # the consistent filter's own error recursion -> null draws of its NEES
+                    # the seeds share the path (same truth, bit for bit), so the rows' Gauss-Markov errors are
+                    # drawn once per simulated experiment: the same shared stream for every seed
                     rng = np.random.default_rng([NULL_SEED, list(PATHS).index(k), v, s])
+                    shared = np.random.default_rng([NULL_SEED, list(PATHS).index(k), v, NULL_SHARED_STREAM])
                     null.setdefault((k, v), []).append(simulate_nees(est.info["lin"], slice(3, 5), est["t"] >= NEES_T_MIN,
-                                                                     NULL_DRAWS[bool(ev.quick)], rng))
+                                                                     NULL_DRAWS[bool(ev.quick)], rng, shared))
                 if "r_vx" in est.info:  # adaptive R: its median sd after NEES_T_MIN
                     rv = est.info["r_vx"][(est["t"] >= NEES_T_MIN) & np.isfinite(est.info["r_vx"])]
                     if rv.size:
@@ -1327,7 +1331,10 @@ def nees(ctx: Any) -> dict[str, float]:
                   f"bench.consistency: {nd} simulated experiments of {n} runs, each run the consistent filter's own "
                   "linearised error recursion on that seed (e_k = (I - K H) F e_(k-1) + w_k, Cov w_k the Joseph "
                   "form's noise terms, e_0 ~ N(0, P_0): errors of a filter whose model is true, with the time "
-                  "correlation of this filter on this path). in-band q05: 5 % quantile of the fraction of steps in "
+                  "correlation of this filter on this path). The seeds of a path share its truth (the physics is the "
+                  "same, only the sensor noise changes), so the part of w_k and e_0 that drives the rows' "
+                  "Gauss-Markov errors (functions of the path) is drawn once per experiment for all its runs, the "
+                  "rest per run. in-band q05: 5 % quantile of the fraction of steps in "
                   f"band; rule pass: share of consistent experiments that pass the >= {NEES_MIN_STEP_FRACTION:.0%} "
                   "rule; p (in band): share with a fraction at or below the observed one; mean NEES 95 %: interval "
                   "of the time-mean seed-averaged NEES and the observed value's two-sided p. Verdict: no cell below "
@@ -1550,7 +1557,8 @@ def nees(ctx: Any) -> dict[str, float]:
         sig = [(k, v) for k, v in nulls
                if min(out[f"{k}.consistent.v{v}.null_p_mean"], out[f"{k}.consistent.v{v}.null_p_in_band"]) < alpha]
         txt += (f"Calibrated test (bench.consistency, {int(out['null_draws'])} simulated experiments of the filter's own "
-                "error recursion per cell: what a consistent filter with these error dynamics gives): the >= "
+                "error recursion per cell, the rows' Gauss-Markov errors shared by the seeds of a path as its truth "
+                "is: what a consistent filter with these error dynamics gives): the >= "
                 f"{NEES_MIN_STEP_FRACTION:.0%} rule passes a consistent filter in "
                 + ", ".join(f"{out[f'{k}.consistent.v{v}.null_rule_pass']:.0%}" for k, v in nulls)
                 + " of the experiments (cells in table order); "

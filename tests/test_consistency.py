@@ -54,11 +54,57 @@ def test_fixed_fraction_rule_fails_a_consistent_random_walk_filter_often():
     assert nl.p_in_band(1.0) == 1.0 and nl.p_in_band(-1.0) == 0.0
 
 
+def _shared_random_walk(n: int, q: float, p0: float, rho: float) -> Linearisation:
+    """A 2-dof unobserved random walk whose noise (and e_0) is a share ``rho`` of variance shared by the runs of an
+    experiment and 1 - rho their own; P_k = (p0 + k q) I as in :func:`_random_walk`."""
+    lin = _random_walk(n, q, p0, 2)
+    sh = np.broadcast_to(np.sqrt(rho * q) * np.eye(2), (n, 2, 2)).copy()
+    sh[0] = np.sqrt(rho * p0) * np.eye(2)
+    return Linearisation(lin.a, (1.0 - rho) * lin.c, lin.p, sh)
+
+
+def test_shared_noise_correlates_the_runs_as_the_closed_form_says():
+    """Runs that share a share rho of every noise (rho = 0.6, 5 runs, 3000 experiments): each run's NEES is still
+    chi-square(2) (its marginal is the filter's P), two runs' errors have correlation rho per axis, so their NEES
+    (a sum of two squares) correlation rho^2, and the 5-run average NEES has variance 4/N (1 + (N - 1) rho^2) instead
+    of chi2(2N)/N's 4/N (closed forms for jointly Gaussian errors; each checked at 3 steps within Monte Carlo error).
+    The runs' shared draws are the same only when null_nees gets a shared_seed: without it the runs are independent
+    (correlation ~ 0), and with rho = 1 every run is the same draw."""
+    n, runs, draws, rho = 200, 5, 3000, 0.6
+    lin = _shared_random_walk(n, 0.02, 0.5, rho)
+    mask = np.ones(n, bool)
+    sims = [simulate_nees(lin, slice(0, 2), mask, draws, np.random.default_rng([4, i]), np.random.default_rng(5))
+            for i in range(runs)]
+    for k in (0, 99, 199):
+        x = np.array([a[:, k] for a in sims])
+        assert x.mean() == pytest.approx(2.0, abs=4 * 2.0 / np.sqrt(runs * draws))
+        corr = np.corrcoef(x[0], x[1])[0, 1]
+        assert corr == pytest.approx(rho**2, abs=0.07)
+        var_avg = x.mean(axis=0).var()
+        expect = 4.0 / runs * (1 + (runs - 1) * rho**2)
+        assert var_avg == pytest.approx(expect, rel=0.12) and var_avg > 1.5 * 4.0 / runs
+    lo, hi = stats.chi2.ppf(0.025, 2 * runs) / runs, stats.chi2.ppf(0.975, 2 * runs) / runs
+    shared = null_nees([lin] * runs, slice(0, 2), [mask] * runs, (lo, hi), 400, np.random.default_rng(6), shared_seed=7)
+    indep = null_nees([lin] * runs, slice(0, 2), [mask] * runs, (lo, hi), 400, np.random.default_rng(6))
+    assert shared.mean.std() > 1.3 * indep.mean.std()  # shared model errors widen the null of the time mean
+    same = [simulate_nees(_shared_random_walk(n, 0.02, 0.5, 1.0), slice(0, 2), mask, 50, np.random.default_rng(i),
+                          np.random.default_rng(8)) for i in range(2)]
+    assert np.allclose(same[0], same[1], rtol=1e-12, atol=0.0)
+    ind2 = [simulate_nees(lin, slice(0, 2), mask, draws, np.random.default_rng([9, i])) for i in range(2)]
+    assert abs(np.corrcoef(ind2[0][:, -1], ind2[1][:, -1])[0, 1]) < 0.07
+    with pytest.raises(ValueError, match="Linearisation.shared"):
+        Linearisation(lin.a, lin.c, lin.p, lin.shared[:-1])
+
+
 def test_yi_filter_linearisation_propagates_its_own_covariance():
     """run_filter_gm(store_lin=True) on a synthetic figure-8 (scheme 3, Gauss-Markov rows, traction offset): the
-    stored recursion satisfies P_k = A_k P_(k-1) A_k^T + C_k at every step to 1e-9 relative (the Joseph update of
-    the filter written as the error recursion), P equals the stored covariance, and the states are those of the run
-    without it (bit for bit); quantisation states are refused."""
+    stored recursion satisfies P_k = A_k P_(k-1) A_k^T + C_k + S_k S_k^T at every step to 1e-9 relative (the Joseph
+    update of the filter written as the error recursion, S the shared loading of the two Gauss-Markov states'
+    driving noise), P equals the stored covariance, and the states are those of the run without it (bit for bit).
+    The shared loading at k = 0 is the error states' stationary sd (0.005, 0.03), so P_0 - S_0 S_0^T is P_0 with
+    those two variances removed; the shared noise is what (I - K H) makes of the driving noise sigma^2 (1 - a^2)
+    (checked at a step from the stored A: column b of S_k is sqrt(q_b) times the b column of (I - K H), which is
+    A_k's b column / a).  Quantisation states are refused."""
     run = synthetic_run("figure8", 3).without_truth()
     t, acc, gyr, enc = align_inputs(run)
     p = EkfParams()
@@ -71,7 +117,15 @@ def test_yi_filter_linearisation_propagates_its_own_covariance():
     assert np.array_equal(res.state, ref.state) and np.array_equal(b, b_ref)
     lin = res.lin
     assert np.array_equal(lin.p, res.cov)
-    pred = np.einsum("kij,kjl,kml->kim", lin.a[1:], lin.p[:-1], lin.a[1:]) + lin.c[1:]
+    sh = lin.shared
+    assert sh is not None and sh.shape == (t.size, lin.p.shape[1], 2)
+    assert np.allclose(np.diag(sh[0][9:11]), [0.005, 0.03], rtol=1e-12) and not sh[0][:9].any()
+    dt, k = float(np.median(np.diff(t))), 500
+    a_b = np.exp(-dt / 2.0)  # both states' tau = 2 s
+    ikh_b = lin.a[k][:, 9:11] / a_b  # F's b columns are a on the diagonal and 0 elsewhere (no odometer here)
+    assert np.allclose(sh[k], ikh_b * np.array([0.005, 0.03]) * np.sqrt(1 - a_b**2), rtol=1e-9, atol=1e-15)
+    pred = (np.einsum("kij,kjl,kml->kim", lin.a[1:], lin.p[:-1], lin.a[1:]) + lin.c[1:]
+            + np.einsum("kim,kjm->kij", sh[1:], sh[1:]))
     scale = np.abs(lin.p[1:]).max(axis=(1, 2))[:, None, None]
     assert np.max(np.abs(pred - lin.p[1:]) / scale) < 1e-9
     with pytest.raises(ValueError, match="store_lin"):
