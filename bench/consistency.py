@@ -56,6 +56,12 @@ class Linearisation:
         if sh is not None and (sh.ndim != 3 or sh.shape[:2] != self.p.shape[:2] or not np.isfinite(sh).all()):
             raise ValueError(f"Linearisation.shared: shape {sh.shape}, must be a finite (n, nx, m) stack with "
                              f"(n, nx) = {self.p.shape[:2]}")
+        if sh is not None:  # the run-own part of e_0's covariance must be positive semi-definite
+            rest = self.p[0] - sh[0] @ sh[0].T
+            low = float(np.linalg.eigvalsh(0.5 * (rest + rest.T))[0])
+            if low < -1e-12 * max(float(np.abs(self.p[0]).max()), 1e-300):
+                raise ValueError(f"Linearisation.shared[0]: p[0] - shared[0] shared[0]^T has eigenvalue {low:.3g} < 0 "
+                                 "(the shared part of e_0 exceeds its covariance)")
 
 
 def _psd_sqrt(c: np.ndarray) -> np.ndarray:

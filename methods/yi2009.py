@@ -1190,8 +1190,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     ``store_lin``: also return the filter's linearised error recursion (``FilterResult.lin``, a
     :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q' (I - K H)^T + K R K^T, P_k,
     with Q' = Q without the Gauss-Markov states' driving noise, which is the ``shared`` loading (I - K H) G_b Q_b^(1/2)
-    instead, and at k = 0 their stationary sd: the rows' errors b are functions of the path, the same in every seed
-    of a scenario) for the null distribution of the NEES test (not with quantisation states).
+    instead, and at k = 0 their initial sd (P0's): the rows' errors b are functions of the path, the same in every
+    seed of a scenario) for the null distribution of the NEES test (not with quantisation states).
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),

@@ -20,6 +20,7 @@ from scipy import stats
 from scipy.optimize import curve_fit
 
 from bench import reproduce as R
+from bench.consistency import NullNees
 from bench.kinematics import integrate_se2
 from bench.registry import calibrated_on
 from bench.run import RunError, from_arrays
@@ -433,7 +434,9 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
                    axes=per_seed,
                    calib_nees=calib_nees, abs_yaw_rate={k: 0.3 for k in Y.PATHS}, calibration=["cal seed 9"],
                    row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4}, calib_row_slip={"yi_calib": 7e-4},
-                   row_hf={"straight": 0.0, "circle": 0.006, "figure8": 0.01})
+                   row_hf={"straight": 0.0, "circle": 0.006, "figure8": 0.01},
+                   null={("circle", 1): NullNees(np.linspace(0.0, 1.0, 101), np.linspace(1.0, 3.0, 101)),
+                         ("figure8", 1): NullNees(np.full(101, 1.0), np.linspace(1.9, 2.1, 101))})
         if extra:
             out["r_adapt"] = {("straight", "ablation_adaptive_r", 1): 6e-4, ("circle", "ablation_adaptive_r", 1): 3e-3,
                               ("figure8", "ablation_adaptive_r", 1): 9e-4}
@@ -457,6 +460,15 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         assert "straight 0.0001, circle 0.0003, figure8 0.0004 m/s; calibration runs yi_calib 0.0007 m/s" in txt
         assert "adaptive_r" not in txt  # quick mode: no ablation
         assert "odometer" not in txt  # the per-step v_x row
+        # the null's statistics as given: circle 1 has no step in band (1 of the 101 null fractions is <= 0) and its
+        # time mean (one step at 2 T, 99 at lo / 2) lies inside the null's means; figure8 1 (mean 2, every step in
+        # band) sits at the middle of its null's; Bonferroni over the 2 cells: 0.05 / 2 > 1 / 101 -> not consistent
+        obs = (2.0 * T + (T - 1) * 0.5 * lo) / T
+        assert m["circle.consistent.v1.null_p_in_band"] == pytest.approx(1 / 101)
+        assert m["circle.consistent.v1.null_p_mean"] == pytest.approx(2 * np.mean(np.linspace(1, 3, 101) >= obs))
+        assert m["figure8.consistent.v1.null_p_mean"] == pytest.approx(1.0) and m["consistent_null_ok"] == 0.0
+        assert m["circle.consistent.v1.null_rule_pass"] == pytest.approx(11 / 101)
+        assert "significant at 0.05 (Bonferroni over the cells) in circle scheme 1" in txt
     # with the odometer: the configuration names it, and a cell below the band along the heading gets its sentence
     ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, odometer=(0.2, 7.8e-5)), "seeds": [0, 1]}, quick=True,
                           out_dir=tmp_path, note=notes.__setitem__)
