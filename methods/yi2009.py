@@ -1483,9 +1483,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             if store_lin:  # error recursion e_k = (I - K H)(F e + w) + K v, with P the prior F P F^T + Q here
                 lin_a.append(IKH @ F)  # the Gauss-Markov states' driving noise (Q diagonal) apart: shared by seeds
                 q_run = np.diag(Qk).copy()
+                lin_s.append(IKH[:, 9:9 + nb] * np.sqrt(q_run[9:9 + nb]))
                 q_run[9:9 + nb] = 0.0
                 lin_c.append((IKH * q_run) @ IKH.T + (K * r_k) @ K.T)
-                lin_s.append(IKH[:, 9:9 + nb] * np.sqrt(np.diag(Qk)[9:9 + nb]))
             P = IKH @ P @ IKH.T + (K * r_k) @ K.T  # Joseph form (26f)
             P = 0.5 * (P + P.T)
             kin = K @ innov

@@ -936,6 +936,7 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     calib_row_slip: dict[str, list[float]] = {}  # the same per calibration scenario
     for k in PATHS:
         draws: dict[int, list[np.ndarray]] = {}  # per scheme: simulated NEES (experiments, T) per seed of this path
+        i_path = list(PATHS).index(k)
         for s in ev.seeds:
             run = runs[(k, s)]
             yaw_rate.setdefault(k, []).append(float(np.mean(np.abs(run["truth_wz"][run.t >= run.t[0] + NEES_T_MIN]))))
@@ -949,8 +950,8 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                 if "lin" in est.info:  # the consistent filter's own error recursion -> null draws of its NEES
                     # the seeds share the path (same truth, bit for bit), so the rows' Gauss-Markov errors are
                     # drawn once per simulated experiment: the same shared stream for every seed
-                    rng = np.random.default_rng([NULL_SEED, list(PATHS).index(k), NULL_RUN_STREAM, s])
-                    shared = np.random.default_rng([NULL_SEED, list(PATHS).index(k), NULL_SHARED_STREAM])
+                    rng = np.random.default_rng([NULL_SEED, i_path, NULL_RUN_STREAM, s])
+                    shared = np.random.default_rng([NULL_SEED, i_path, NULL_SHARED_STREAM])
                     draws.setdefault(v, []).append(simulate_nees(est.info["lin"], slice(3, 5), est["t"] >= NEES_T_MIN,
                                                                  NULL_DRAWS[bool(ev.quick)], rng, shared))
                 if "r_vx" in est.info:  # adaptive R: its median sd after NEES_T_MIN
