@@ -1118,8 +1118,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                   vx_offset: np.ndarray | None = None, store_lin: bool = False, vy_offset: np.ndarray | None = None,
                   imu_mean: bool = False, enc_gamma: np.ndarray | None = None, gm_sigma: np.ndarray | None = None,
                   vx_skip: np.ndarray | None = None, vy_skip: np.ndarray | None = None, adaptive_vx: int = 0,
-                  adaptive_floor: float = ADAPTIVE_R_FLOOR, odo_window: int = 0, odo_sd: float = 0.0
-                  ) -> tuple[FilterResult, np.ndarray, np.ndarray]:
+                  adaptive_floor: float = ADAPTIVE_R_FLOOR, odo_window: int = 0, odo_sd: float = 0.0,
+                  shared_init: Sequence[int] = ()) -> tuple[FilterResult, np.ndarray, np.ndarray]:
     """:func:`run_filter` with the pseudo-measurement errors augmented as Gauss-Markov states (not Yi's).
 
     State (P_I, V_I, phi, theta, psi, b_x[, b_y][, u_prev, u][, d]): b_x is the correlated error of the v_x row (13),
@@ -1192,6 +1192,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     with Q' = Q without the Gauss-Markov states' driving noise, which is the ``shared`` loading (I - K H) G_b Q_b^(1/2)
     instead, and at k = 0 their initial sd (P0's): the rows' errors b are functions of the path, the same in every
     seed of a scenario) for the null distribution of the NEES test (not with quantisation states).
+    ``shared_init`` (``store_lin``): the navigation states (indices 0-8) whose initial error is shared too: x0 took
+    them from the scenario, not from the run's sensors, so e_0 there is the path's (x0 minus the truth's start), the
+    same in every seed; their P0 sd joins the shared loading at k = 0 (P0 must not couple them with the other states).
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
@@ -1232,6 +1235,9 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     skipy_l = np.zeros(n, bool).tolist() if vy_skip is None else np.asarray(vy_skip, bool).tolist()
     if store_lin and enc_quant > 0:
         raise ValueError("run_filter_gm: store_lin is not available with quantisation states (enc_quant > 0)")
+    shared_init = sorted(set(int(i) for i in shared_init))
+    if shared_init and not (store_lin and 0 <= shared_init[0] and shared_init[-1] < 9):
+        raise ValueError(f"run_filter_gm: shared_init = {shared_init} needs store_lin and navigation states 0-8")
     lin_a: list[np.ndarray] = []
     lin_c: list[np.ndarray] = []
     lin_p: list[np.ndarray] = []
@@ -1554,16 +1560,25 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
             covs.append(P)
         if store_lin:
             lin_p.append(P)
-            if k == 0:  # e_0 ~ N(0, P0): the Gauss-Markov states' part of it is shared
+            if k == 0:  # e_0 ~ N(0, P0): the Gauss-Markov states' part and that of shared_init are shared
                 lin_a.append(Ix)
                 lin_c.append(np.zeros((nx, nx)))
                 lin_s.append(Ix[:, 9:9 + nb] * np.sqrt(np.diag(P)[9:9 + nb]))
+                rest = [j for j in range(nx) if j not in shared_init]
+                if shared_init and np.any(P[np.ix_(shared_init, rest)] != 0.0):
+                    raise ValueError(f"run_filter_gm: P0 couples the shared_init states {shared_init} with the others")
+                init_cols = Ix[:, shared_init] * np.sqrt(np.diag(P)[shared_init])
 
     o = np.array(out, dtype=float).reshape(n, 18 + nb)
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
     lin = None
     if store_lin:
-        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p), np.array(lin_s) if nb else None)
+        shared = None
+        if nb or shared_init:  # the Gauss-Markov columns at every step, the shared_init ones at k = 0 only
+            shared = np.zeros((n, nx, nb + len(shared_init)))
+            shared[:, :, :nb] = np.array(lin_s)
+            shared[0, :, nb:] = init_cols
+        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p), shared)
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
                        np.array(covs) if store_cov else None, lin, r_vx)
     return res, o[:, 18:], o[:, 16:18]
@@ -1877,6 +1892,15 @@ def _row_offsets(traction: TractionSlip | None, icr: IcrCorrection | None, acc: 
             None if icr is None else icr.offset(gyr, enc if enc_gamma is None else enc_gamma, r, moving))
 
 
+def shared_initial_states(enc: np.ndarray, r: float, params: EkfParams, x0: np.ndarray) -> tuple[int, ...]:
+    """The navigation states (0-8) whose initial error :func:`initial_state` does not take from the run's sensors,
+    so that on a scenario's seeds (one truth, other sensor noise) it is the same: all but roll and pitch when they
+    are levelled from the accelerometer (:func:`at_rest_start`) and the velocity when x0 has the first encoder
+    sample's nonzero speed (its quantisation).  ``run_filter_gm`` ``shared_init``."""
+    per_run = ((6, 7) if at_rest_start(enc, r, params) else ()) + ((3, 4, 5) if np.any(x0[3:6] != 0.0) else ())
+    return tuple(i for i in range(9) if i not in per_run)
+
+
 def _initial_state_consistent(acc: np.ndarray, enc: np.ndarray, r: float, params: EkfParams,
                               pose: tuple[float, float, float], unlevelled_p0_rollpitch: float,
                               start_yaw_sd: float | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -2122,7 +2146,9 @@ class Yi2009EkfConsistent(Yi2009Ekf):
                                      vx_offset=vx_offset, vy_offset=vy_offset,
                                      gm_sigma=gm_sigma_steps(_row_gms(self.gm_x, self.gm_y, self.variant),
                                                              yaw_rate_scale(gyr, t)),
-                                     store_lin=self.store_linearisation, **opts)
+                                     store_lin=self.store_linearisation,
+                                     shared_init=shared_initial_states(enc, r, self.params, x0)
+                                     if self.store_linearisation else (), **opts)
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         cols["b_x"] = bias[:, 0]
         if self.variant == 3:

@@ -6,7 +6,8 @@ import pytest
 from scipy import stats
 
 from bench.consistency import Linearisation, NullNees, null_nees, simulate_nees
-from methods.yi2009 import (PUBLISHED_S_GAMMA, EkfParams, GaussMarkov, align_inputs, initial_state, run_filter_gm)
+from methods.yi2009 import (PUBLISHED_S_GAMMA, EkfParams, GaussMarkov, align_inputs, initial_state, run_filter_gm,
+                           shared_initial_states)
 from tests.test_yi2009 import R_WHEEL, TRACK, synthetic_run
 
 
@@ -144,9 +145,39 @@ def test_yi_filter_linearisation_propagates_its_own_covariance():
     odo, _, _ = run_filter_gm(t, acc, gyr, enc, store_lin=True, odo_window=25, odo_sd=1e-4, gm_sigma=sig, **kw)
     assert odo.lin.shared is not None and _recursion_misfit(odo.lin) < 1e-9
     assert np.allclose(np.diag(odo.lin.shared[0][9:11]), sig[0], rtol=1e-12)
+    # initial errors the seeds share (x0 from the scenario, not the sensors): their P0 sd joins S at k = 0 only
+    init = (0, 1, 2, 3, 4, 5, 8)
+    shi, _, _ = run_filter_gm(t, acc, gyr, enc, store_lin=True, shared_init=init, **kw)
+    s0 = shi.lin.shared
+    assert np.array_equal(shi.state, ref.state) and s0.shape == (t.size, lin.p.shape[1], 2 + len(init))
+    assert np.array_equal(s0[:, :, :2], sh) and not s0[1:, :, 2:].any()
+    assert np.allclose(s0[0][init, 2:], np.diag(np.sqrt(np.diag(p0)[list(init)])), rtol=1e-12)
+    rest = lin.p[0] - s0[0] @ s0[0].T  # what is drawn per run: roll and pitch only
+    assert np.allclose(np.diag(rest)[[6, 7]], np.diag(p0)[[6, 7]]) and np.allclose(np.delete(np.diag(rest), [6, 7]), 0)
+    assert _recursion_misfit(shi.lin) < 1e-9
+    with pytest.raises(ValueError, match="couples"):
+        p0c = p0.copy()
+        p0c[0, 6] = p0c[6, 0] = 1e-8
+        run_filter_gm(t, acc, gyr, enc, store_lin=True, shared_init=init, **{**kw, "p0": p0c})
+    with pytest.raises(ValueError, match="shared_init"):
+        run_filter_gm(t, acc, gyr, enc, shared_init=init, **kw)
     with pytest.raises(ValueError, match="store_lin"):
         run_filter_gm(t, acc, gyr, enc, store_lin=True, enc_quant=0.001,
                       **{**kw, "vx_offset": None})
     with pytest.raises(ValueError, match="Linearisation.c"):
         Linearisation(lin.a, lin.c[:-1], lin.p)
     assert isinstance(NullNees.from_draws([np.ones((3, 5))], (0.5, 2.0)), NullNees)
+
+
+def test_shared_initial_states_are_those_not_taken_from_the_sensors():
+    """shared_initial_states: levelled roll/pitch (wheels at rest over the levelling samples) and a nonzero encoder
+    start speed come from the run's sensors, so they stay per run; everything else x0 takes from the scenario."""
+    p = EkfParams()
+    n = 100
+    still, rolling = np.zeros((n, 2)), np.full((n, 2), 2.0)
+    x0 = np.zeros(9)
+    assert shared_initial_states(still, R_WHEEL, p, x0) == (0, 1, 2, 3, 4, 5, 8)
+    assert shared_initial_states(rolling, R_WHEEL, p, x0) == tuple(range(9))
+    x0v = x0.copy()
+    x0v[3] = 0.17
+    assert shared_initial_states(rolling, R_WHEEL, p, x0v) == (0, 1, 2, 6, 7, 8)

@@ -436,7 +436,10 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
                    row_slip={"straight": 1e-4, "circle": 3e-4, "figure8": 4e-4}, calib_row_slip={"yi_calib": 7e-4},
                    row_hf={"straight": 0.0, "circle": 0.006, "figure8": 0.01},
                    null={("circle", 1): NullNees(np.linspace(0.0, 1.0, 101), np.linspace(1.0, 3.0, 101)),
-                         ("figure8", 1): NullNees(np.full(101, 1.0), np.linspace(1.9, 2.1, 101))})
+                         ("figure8", 1): NullNees(np.full(101, 1.0), np.linspace(1.9, 2.1, 101))},
+                   replication={
+                       ("figure8", 1): (np.full(T, 2.0), NullNees(np.full(101, 1.0), np.linspace(1.9, 2.1, 101))),
+                       ("circle", 1): (np.full(T, 1.0), NullNees(np.full(101, 0.5), np.linspace(1.8, 2.2, 101)))})
         if extra:
             out["r_adapt"] = {("straight", "ablation_adaptive_r", 1): 6e-4, ("circle", "ablation_adaptive_r", 1): 3e-3,
                               ("figure8", "ablation_adaptive_r", 1): 9e-4}
@@ -469,6 +472,17 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         assert m["figure8.consistent.v1.null_p_mean"] == pytest.approx(1.0) and m["consistent_null_ok"] == 0.0
         assert m["circle.consistent.v1.null_rule_pass"] == pytest.approx(11 / 101)
         assert "significant at 0.05 (Bonferroni over the cells) in circle scheme 1" in txt
+        # the replication on SETTINGS.nees_replication_seeds (its own band chi2(2N)/N): figure8 1 every step in band
+        # at the null's middle; circle 1 (NEES 1, below the band at N = 20) under every null in-band fraction (0.5)
+        # and mean -> p 0 in both -> not consistent
+        rlo, rhi = Y.nees_band(len(Y.SETTINGS.nees_replication_seeds), 2)
+        assert rlo > 1.0 and (m["rep_band_lo"], m["rep_band_hi"]) == pytest.approx((rlo, rhi))
+        assert m["figure8.consistent.v1.rep_in_band"] == 1.0 and m["figure8.consistent.v1.rep_p_mean"] == 1.0
+        assert m["circle.consistent.v1.rep_in_band"] == 0.0 and m["circle.consistent.v1.rep_p_in_band"] == 0.0
+        assert m["circle.consistent.v1.rep_p_mean"] == 0.0 and m["consistent_rep_ok"] == 0.0
+        assert m["circle.consistent.v1.rep_rule_pass"] == 0.0 and m["figure8.consistent.v1.rep_rule_pass"] == 1.0
+        md = (tmp_path / "nees_consistency.md").read_text()
+        assert "## Replication: the same test on 20 seeds" in md and "| circle | 1 | 0% | 0% | 0.000 | 1 |" in md
     # with the odometer: the configuration names it, and a cell below the band along the heading gets its sentence
     ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, odometer=(0.2, 7.8e-5)), "seeds": [0, 1]}, quick=True,
                           out_dir=tmp_path, note=notes.__setitem__)
