@@ -21,7 +21,9 @@ models as a random process but is in truth a deterministic function of the path 
 or the kinematic model's misfit) is one realisation, the same in all N runs; averaging over the seeds does not
 average it.  ``Linearisation.shared`` carries the loading of that part of the noise, and :func:`null_nees` with a
 ``shared_seed`` draws it once per experiment for all N runs (the independent part per run), which is the null
-distribution of the experiment actually run.
+distribution of the experiment actually run.  ``Linearisation.shared0`` does the same for the initial error of a
+state the filter starts from the scenario (a given start pose, a start at rest) rather than from the run's sensors:
+x0 minus the truth's start, the same in every seed.
 """
 from __future__ import annotations
 
@@ -37,13 +39,17 @@ class Linearisation:
     of its run-own noise, ``p`` (n, nx, nx) the filter's posterior covariance (``a[0]`` unused: e_0 ~ N(0, p[0])).
     ``shared`` (n, nx, m), optional: the loading of m unit-variance noises that every run of an experiment shares
     (the model errors the runs repeat; module docstring): e_k = a_k e_(k-1) + c_k^(1/2) z_k + shared_k u_k, so
-    p_k = a_k p_(k-1) a_k^T + c_k + shared_k shared_k^T, and e_0 = (p_0 - shared_0 shared_0^T)^(1/2) z_0 +
-    shared_0 u_0."""
+    p_k = a_k p_(k-1) a_k^T + c_k + shared_k shared_k^T, and e_0 = (p_0 - shared_0 shared_0^T - shared0
+    shared0^T)^(1/2) z_0 + shared_0 u_0 + shared0 u'_0.  ``shared0`` (nx, m0), optional: a shared part of e_0 alone
+    (an initial error the runs repeat: a start state taken from the scenario, not from the run's sensors).  The
+    shared draws are matched by position: the columns of ``shared`` and ``shared0`` must mean the same in every
+    run of an experiment."""
 
     a: np.ndarray
     c: np.ndarray
     p: np.ndarray
     shared: np.ndarray | None = None
+    shared0: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.p.shape[0]
@@ -56,12 +62,25 @@ class Linearisation:
         if sh is not None and (sh.ndim != 3 or sh.shape[:2] != self.p.shape[:2] or not np.isfinite(sh).all()):
             raise ValueError(f"Linearisation.shared: shape {sh.shape}, must be a finite (n, nx, m) stack with "
                              f"(n, nx) = {self.p.shape[:2]}")
-        if sh is not None:  # the run-own part of e_0's covariance must be positive semi-definite
-            rest = self.p[0] - sh[0] @ sh[0].T
+        s0 = self.shared0
+        if s0 is not None and (s0.ndim != 2 or s0.shape[0] != self.p.shape[1] or not np.isfinite(s0).all()):
+            raise ValueError(f"Linearisation.shared0: shape {s0.shape}, must be a finite (nx, m0) array with nx = "
+                             f"{self.p.shape[1]}")
+        if sh is not None or s0 is not None:  # the run-own part of e_0's covariance must be positive semi-definite
+            rest = self.p0_own()
             low = float(np.linalg.eigvalsh(0.5 * (rest + rest.T))[0])
             if low < -1e-12 * max(float(np.abs(self.p[0]).max()), 1e-300):
-                raise ValueError(f"Linearisation.shared[0]: p[0] - shared[0] shared[0]^T has eigenvalue {low:.3g} < 0 "
-                                 "(the shared part of e_0 exceeds its covariance)")
+                raise ValueError(f"Linearisation.shared[0] / shared0: p[0] minus the shared parts has eigenvalue "
+                                 f"{low:.3g} < 0 (the shared part of e_0 exceeds its covariance)")
+
+    def p0_own(self) -> np.ndarray:
+        """The covariance of the run-own part of e_0: p[0] minus the shared parts."""
+        rest = self.p[0]
+        if self.shared is not None:
+            rest = rest - self.shared[0] @ self.shared[0].T
+        if self.shared0 is not None:
+            rest = rest - self.shared0 @ self.shared0.T
+        return rest
 
 
 def _psd_sqrt(c: np.ndarray) -> np.ndarray:
@@ -74,19 +93,20 @@ def simulate_nees(lin: Linearisation, block: slice, mask: np.ndarray, n_draws: i
                   shared_rng: np.random.Generator | None = None) -> np.ndarray:
     """(n_draws, mask.sum()) NEES of the state ``block`` at the masked steps for ``n_draws`` error sequences of the
     recursion of ``lin`` (vectorised over the draws; the NEES uses the filter's own P block).  The run-own noise is
-    drawn from ``rng``; the shared noise of ``lin.shared`` from ``shared_rng`` (give every run of an experiment a
-    generator in the same state: draw j of each run then shares its model errors), or from ``rng`` when None (the
-    runs independent in everything)."""
+    drawn from ``rng``; the shared noise of ``lin.shared`` and ``lin.shared0`` from ``shared_rng`` (give every run
+    of an experiment a generator in the same state: draw j of each run then shares its model errors), or from
+    ``rng`` when None (the runs independent in everything)."""
     n, nx, _ = lin.p.shape
     if mask.shape != (n,):
         raise ValueError(f"simulate_nees: mask of shape {mask.shape} for {n} steps")
     sh = lin.shared
     srng = rng if shared_rng is None else shared_rng
     roots = _psd_sqrt(lin.c)
-    p0 = lin.p[0] if sh is None else lin.p[0] - sh[0] @ sh[0].T
-    e = _psd_sqrt(p0[None])[0] @ rng.standard_normal((nx, n_draws))
+    e = _psd_sqrt(lin.p0_own()[None])[0] @ rng.standard_normal((nx, n_draws))
     if sh is not None:
         e = e + sh[0] @ srng.standard_normal((sh.shape[2], n_draws))
+    if lin.shared0 is not None:
+        e = e + lin.shared0 @ srng.standard_normal((lin.shared0.shape[1], n_draws))
     p_inv = np.linalg.inv(lin.p[:, block, block][mask])
     out = np.empty((n_draws, int(mask.sum())))
     j = 0
@@ -132,6 +152,16 @@ class NullNees:
     def p_mean(self, observed: float) -> float:
         """Two-sided p of an observed time-mean NEES: 2 min(P(null <= obs), P(null >= obs)), at most 1."""
         return float(min(1.0, 2.0 * min(np.mean(self.mean <= observed), np.mean(self.mean >= observed))))
+
+
+def truncated_sum(total: np.ndarray | None, x: np.ndarray) -> np.ndarray:
+    """``total + x`` over the common length of their last axis (``x`` itself when ``total`` is None): the running
+    sum of per-run series of slightly different lengths, step by step, as :meth:`NullNees.from_draws` averages them
+    (one run in memory at a time)."""
+    if total is None:
+        return np.array(x, dtype=float)
+    t = min(total.shape[-1], x.shape[-1])
+    return total[..., :t] + x[..., :t]
 
 
 def null_nees(lins: Sequence[Linearisation], block: slice, masks: Sequence[np.ndarray], band: tuple[float, float],

@@ -1194,7 +1194,8 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     seed of a scenario) for the null distribution of the NEES test (not with quantisation states).
     ``shared_init`` (``store_lin``): the navigation states (indices 0-8) whose initial error is shared too: x0 took
     them from the scenario, not from the run's sensors, so e_0 there is the path's (x0 minus the truth's start), the
-    same in every seed; their P0 sd joins the shared loading at k = 0 (P0 must not couple them with the other states).
+    same in every seed; the square root of their block of P0 is ``Linearisation.shared0`` (nx, 9), column j for state
+    j in every run, zero for the states not shared (P0 must not couple the shared states with the others).
     ``gm_x`` None: no error states, the white R of the paper (r^2 sigma_en^2, sigma_2^2 of ``params``; ``gm_y``
     ignored): :func:`run_filter`, the paper's filter.
     Returns (FilterResult with the 9-state part and, when ``store_cov``, the (n, nx, nx) covariance, b (n, nb),
@@ -1567,18 +1568,19 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
                 rest = [j for j in range(nx) if j not in shared_init]
                 if shared_init and np.any(P[np.ix_(shared_init, rest)] != 0.0):
                     raise ValueError(f"run_filter_gm: P0 couples the shared_init states {shared_init} with the others")
-                init_cols = Ix[:, shared_init] * np.sqrt(np.diag(P)[shared_init])
+                shared0 = np.zeros((nx, 9))  # column j: navigation state j (zero where per run), in every run
+                if shared_init:
+                    blk = P[np.ix_(shared_init, shared_init)]  # diagonal: column j is state j's sd
+                    shared0[np.ix_(shared_init, shared_init)] = (np.diag(np.sqrt(np.diag(blk)))
+                                                                 if np.count_nonzero(blk - np.diag(np.diag(blk))) == 0
+                                                                 else np.linalg.cholesky(blk))
 
     o = np.array(out, dtype=float).reshape(n, 18 + nb)
     s_icr = o[:, 15] if use_vy else np.full(n, np.nan)
     lin = None
     if store_lin:
-        shared = None
-        if nb or shared_init:  # the Gauss-Markov columns at every step, the shared_init ones at k = 0 only
-            shared = np.zeros((n, nx, nb + len(shared_init)))
-            shared[:, :, :nb] = np.array(lin_s)
-            shared[0, :, nb:] = init_cols
-        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p), shared)
+        lin = Linearisation(np.array(lin_a), np.array(lin_c), np.array(lin_p), np.array(lin_s) if nb else None,
+                            shared0 if shared_init else None)
     res = FilterResult(t.copy(), o[:, :9], o[:, 9:12], o[:, 12], o[:, 13:15], s_icr, (nxu, nyu, nzu),
                        np.array(covs) if store_cov else None, lin, r_vx)
     return res, o[:, 18:], o[:, 16:18]

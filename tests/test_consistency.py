@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from bench.consistency import Linearisation, NullNees, null_nees, simulate_nees
+from bench.consistency import Linearisation, NullNees, null_nees, simulate_nees, truncated_sum
 from methods.yi2009 import (PUBLISHED_S_GAMMA, EkfParams, GaussMarkov, align_inputs, initial_state, run_filter_gm,
                            shared_initial_states)
 from tests.test_yi2009 import R_WHEEL, TRACK, synthetic_run
@@ -145,16 +145,21 @@ def test_yi_filter_linearisation_propagates_its_own_covariance():
     odo, _, _ = run_filter_gm(t, acc, gyr, enc, store_lin=True, odo_window=25, odo_sd=1e-4, gm_sigma=sig, **kw)
     assert odo.lin.shared is not None and _recursion_misfit(odo.lin) < 1e-9
     assert np.allclose(np.diag(odo.lin.shared[0][9:11]), sig[0], rtol=1e-12)
-    # initial errors the seeds share (x0 from the scenario, not the sensors): their P0 sd joins S at k = 0 only
+    # initial errors the seeds share (x0 from the scenario, not the sensors): their block of P0's square root is
+    # shared0, column j for state j (zero columns for roll and pitch here); the per-step loading is unchanged
     init = (0, 1, 2, 3, 4, 5, 8)
     shi, _, _ = run_filter_gm(t, acc, gyr, enc, store_lin=True, shared_init=init, **kw)
-    s0 = shi.lin.shared
-    assert np.array_equal(shi.state, ref.state) and s0.shape == (t.size, lin.p.shape[1], 2 + len(init))
-    assert np.array_equal(s0[:, :, :2], sh) and not s0[1:, :, 2:].any()
-    assert np.allclose(s0[0][init, 2:], np.diag(np.sqrt(np.diag(p0)[list(init)])), rtol=1e-12)
-    rest = lin.p[0] - s0[0] @ s0[0].T  # what is drawn per run: roll and pitch only
-    assert np.allclose(np.diag(rest)[[6, 7]], np.diag(p0)[[6, 7]]) and np.allclose(np.delete(np.diag(rest), [6, 7]), 0)
+    s0 = shi.lin.shared0
+    assert np.array_equal(shi.state, ref.state) and np.array_equal(shi.lin.shared, sh)
+    assert s0.shape == (lin.p.shape[1], 9) and not s0[:, [6, 7]].any() and not s0[9:].any()
+    assert np.allclose(s0[:9], np.diag(np.where(np.isin(np.arange(9), init), np.sqrt(np.diag(p0)), 0.0)),
+                       rtol=1e-12, atol=0.0)
+    rest = shi.lin.p0_own()  # what is drawn per run: roll and pitch, and the error states' run-own part (none)
+    assert np.allclose(np.diag(rest)[[6, 7]], np.diag(p0)[[6, 7]], rtol=1e-12)
+    assert np.allclose(np.delete(np.diag(rest), [6, 7]), 0.0, atol=1e-18)
     assert _recursion_misfit(shi.lin) < 1e-9
+    with pytest.raises(ValueError, match="shared0"):  # a shared initial error larger than P0
+        Linearisation(shi.lin.a, shi.lin.c, shi.lin.p, shi.lin.shared, 1.01 * s0)
     with pytest.raises(ValueError, match="couples"):
         p0c = p0.copy()
         p0c[0, 6] = p0c[6, 0] = 1e-8
@@ -170,14 +175,35 @@ def test_yi_filter_linearisation_propagates_its_own_covariance():
 
 
 def test_shared_initial_states_are_those_not_taken_from_the_sensors():
-    """shared_initial_states: levelled roll/pitch (wheels at rest over the levelling samples) and a nonzero encoder
-    start speed come from the run's sensors, so they stay per run; everything else x0 takes from the scenario."""
+    """shared_initial_states on the x0 that initial_state builds: levelled roll/pitch (wheels at rest over the
+    levelling samples) and a nonzero encoder start speed come from the run's sensors, so they stay per run;
+    everything else is taken from the scenario (pose, zero velocity)."""
     p = EkfParams()
     n = 100
-    still, rolling = np.zeros((n, 2)), np.full((n, 2), 2.0)
-    x0 = np.zeros(9)
-    assert shared_initial_states(still, R_WHEEL, p, x0) == (0, 1, 2, 3, 4, 5, 8)
-    assert shared_initial_states(rolling, R_WHEEL, p, x0) == tuple(range(9))
-    x0v = x0.copy()
-    x0v[3] = 0.17
-    assert shared_initial_states(rolling, R_WHEEL, p, x0v) == (0, 1, 2, 6, 7, 8)
+    acc = np.tile((0.1, -0.2, 9.8), (n, 1))
+    still, rolling, creep = np.zeros((n, 2)), np.full((n, 2), 2.0), np.zeros((n, 2))
+    creep[0] = 2.0  # a first encoder speed (as a log that starts moving), then wheels at rest: not levelled
+    cases = {"still": (still, (0, 1, 2, 3, 4, 5, 8)), "rolling": (rolling, (0, 1, 2, 6, 7, 8)),
+             "creep": (creep, (0, 1, 2, 6, 7, 8))}
+    for name, (enc, want) in cases.items():
+        x0, _ = initial_state(acc, enc, R_WHEEL, p, (0.0, 0.0, 0.3))
+        assert shared_initial_states(enc, R_WHEEL, p, x0) == want, name
+    enc0 = rolling.copy()
+    enc0[0] = 0.0  # a testbed log: the first count difference is 0, so x0's speed is 0 and shared
+    x0, _ = initial_state(acc, enc0, R_WHEEL, p, (0.0, 0.0, 0.3))
+    assert shared_initial_states(enc0, R_WHEEL, p, x0) == tuple(range(9))
+
+
+def test_truncated_sum_averages_runs_as_from_draws():
+    """The replication's running sum over runs of unequal length (truncated_sum), divided by the number of runs, is
+    the step-by-step average NullNees.from_draws takes of the list: same statistics, common length the shortest."""
+    rng = np.random.default_rng(3)
+    sims = [rng.chisquare(2, (40, t)) for t in (50, 48, 51)]
+    total = None
+    for a in sims:
+        total = truncated_sum(total, a)
+    assert total.shape == (40, 48)
+    one, ref = NullNees.from_draws([total / 3], (0.5, 3.0)), NullNees.from_draws(sims, (0.5, 3.0))
+    assert np.allclose(one.mean, ref.mean, rtol=1e-14) and np.array_equal(one.in_band, ref.in_band)
+    obs = truncated_sum(truncated_sum(None, np.arange(5.0)), np.arange(4.0))  # 1-D series too
+    assert np.array_equal(obs, [0.0, 2.0, 4.0, 6.0])

@@ -483,6 +483,23 @@ def test_nees_note_sentences_follow_the_per_cell_numbers(tmp_path) -> None:
         assert m["circle.consistent.v1.rep_rule_pass"] == 0.0 and m["figure8.consistent.v1.rep_rule_pass"] == 1.0
         md = (tmp_path / "nees_consistency.md").read_text()
         assert "## Replication: the same test on 20 seeds" in md and "| circle | 1 | 0% | 0% | 0.000 | 1 |" in md
+    # the replication's Bonferroni level is 0.05 over its own cells: with two cells (0.025), a p (mean) of 0.03
+    # passes and one of 0.02 fails (the null means: 3 or 2 of 200 at or above the observed 2, the rest at 1)
+    for n_above, ok in ((3, 1.0), (2, 0.0)):
+        info = ne(0.1)
+        null_mean = np.r_[np.full(200 - n_above, 1.0), np.full(n_above, 3.0)]
+        info["replication"] = {
+            ("figure8", 1): (np.full(T, 2.0), NullNees(np.full(200, 1.0), np.linspace(1.9, 2.1, 200))),
+            ("straight", 1): (np.full(T, 2.0), NullNees(np.full(200, 0.5), null_mean))}
+        ctx = SimpleNamespace(info={Y._NEES_KEY: info, "seeds": [0, 1]}, quick=True, out_dir=tmp_path,
+                              note=notes.__setitem__)
+        m = Y.nees(ctx)
+        assert m["straight.consistent.v1.rep_p_mean"] == pytest.approx(2 * n_above / 200)
+        assert m["straight.consistent.v1.rep_p_in_band"] == 1.0 and m["consistent_rep_ok"] == ok
+        txt = notes["nees_consistent"]
+        assert ("The same test on 20 seeds of each path" in txt
+                and ("no cell significant at 0.05 / 2; smallest p 0.03 (straight scheme 1, time-mean NEES 2)" in txt)
+                is bool(ok) and ("significant in straight scheme 1" in txt) is (not ok))
     # with the odometer: the configuration names it, and a cell below the band along the heading gets its sentence
     ctx = SimpleNamespace(info={Y._NEES_KEY: ne(0.1, odometer=(0.2, 7.8e-5)), "seeds": [0, 1]}, quick=True,
                           out_dir=tmp_path, note=notes.__setitem__)
