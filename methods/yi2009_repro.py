@@ -1261,6 +1261,15 @@ def _told_txt(out: Mapping[str, float]) -> str:
     return txt
 
 
+def _null_test(nl: NullNees, in_band: float, mean_nees: float) -> dict[str, float]:
+    """One cell's calibrated test against its null ``nl``: the share of consistent experiments that pass the
+    ``NEES_MIN_STEP_FRACTION`` rule, the p of the observed fraction of steps in band ``in_band`` and of the observed
+    time-mean NEES ``mean_nees``, and the null's 95 % interval of that mean."""
+    lo, hi = nl.mean_interval(0.95)
+    return {"rule_pass": float(np.mean(nl.in_band >= NEES_MIN_STEP_FRACTION)), "p_in_band": nl.p_in_band(in_band),
+            "mean_lo": lo, "mean_hi": hi, "p_mean": nl.p_mean(mean_nees)}
+
+
 def nees(ctx: Any) -> dict[str, float]:
     """Velocity NEES of the three schemes, paper vs consistent configuration, mean over seeds, against the
     chi-square 95% band for the number of seeds; position RMS of both configurations; identified noise; per cell
@@ -1275,10 +1284,7 @@ def nees(ctx: Any) -> dict[str, float]:
     for (k, v), nl in nulls.items():
         key = f"{k}.consistent.v{v}"
         out[f"{key}.null_in_band_q05"] = nl.quantile_in_band(0.05)
-        out[f"{key}.null_rule_pass"] = float(np.mean(nl.in_band >= NEES_MIN_STEP_FRACTION))
-        out[f"{key}.null_p_in_band"] = nl.p_in_band(out[f"{key}.in_band"])
-        out[f"{key}.null_mean_lo"], out[f"{key}.null_mean_hi"] = nl.mean_interval(0.95)
-        out[f"{key}.null_p_mean"] = nl.p_mean(out[f"{key}.nees"])
+        out.update({f"{key}.null_{n}": x for n, x in _null_test(nl, out[f"{key}.in_band"], out[f"{key}.nees"]).items()})
         null_ok = null_ok and min(out[f"{key}.null_p_in_band"], out[f"{key}.null_p_mean"]) >= alpha
     out["consistent_null_ok"] = float(null_ok)
     out["null_draws"] = float(NULL_DRAWS[bool(ctx.quick)])
@@ -1291,10 +1297,7 @@ def nees(ctx: Any) -> dict[str, float]:
             key = f"{k}.consistent.v{v}.rep"
             out[f"{key}_nees"] = float(np.mean(avg))
             out[f"{key}_in_band"] = float(np.mean((avg >= band_rep[0]) & (avg <= band_rep[1])))
-            out[f"{key}_rule_pass"] = float(np.mean(nl.in_band >= NEES_MIN_STEP_FRACTION))
-            out[f"{key}_p_in_band"] = nl.p_in_band(out[f"{key}_in_band"])
-            out[f"{key}_mean_lo"], out[f"{key}_mean_hi"] = nl.mean_interval(0.95)
-            out[f"{key}_p_mean"] = nl.p_mean(out[f"{key}_nees"])
+            out.update({f"{key}_{n}": x for n, x in _null_test(nl, out[f"{key}_in_band"], out[f"{key}_nees"]).items()})
             rep_ok = rep_ok and min(out[f"{key}_p_in_band"], out[f"{key}_p_mean"]) >= NULL_ALPHA / len(replication)
         out["consistent_rep_ok"] = float(rep_ok)
         out["rep_seeds"] = float(n_rep)
