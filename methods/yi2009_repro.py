@@ -1270,6 +1270,12 @@ def _null_test(nl: NullNees, in_band: float, mean_nees: float) -> dict[str, floa
             "mean_lo": lo, "mean_hi": hi, "p_mean": nl.p_mean(mean_nees)}
 
 
+def _min_p(out: Mapping[str, float], cell: tuple[str, int], test: str) -> float:
+    """The smaller of a cell's two p of the calibrated test ``test`` ("null": 5 seeds; "rep": the replication)."""
+    key = f"{cell[0]}.consistent.v{cell[1]}.{test}"
+    return min(out[f"{key}_p_in_band"], out[f"{key}_p_mean"])
+
+
 def nees(ctx: Any) -> dict[str, float]:
     """Velocity NEES of the three schemes, paper vs consistent configuration, mean over seeds, against the
     chi-square 95% band for the number of seeds; position RMS of both configurations; identified noise; per cell
@@ -1280,26 +1286,25 @@ def nees(ctx: Any) -> dict[str, float]:
     out = nees_summary(ne["series"], n, 2, SETTINGS.confidence)
     nulls = ne.get("null", {})
     alpha = NULL_ALPHA / max(len(nulls), 1)  # Bonferroni over the consistent cells
-    null_ok = bool(nulls)
     for (k, v), nl in nulls.items():
         key = f"{k}.consistent.v{v}"
         out[f"{key}.null_in_band_q05"] = nl.quantile_in_band(0.05)
-        out.update({f"{key}.null_{n}": x for n, x in _null_test(nl, out[f"{key}.in_band"], out[f"{key}.nees"]).items()})
-        null_ok = null_ok and min(out[f"{key}.null_p_in_band"], out[f"{key}.null_p_mean"]) >= alpha
-    out["consistent_null_ok"] = float(null_ok)
+        stats_ = _null_test(nl, out[f"{key}.in_band"], out[f"{key}.nees"])
+        out.update({f"{key}.null_{stat}": x for stat, x in stats_.items()})
+    out["consistent_null_ok"] = float(bool(nulls) and all(_min_p(out, kv, "null") >= alpha for kv in nulls))
     out["null_draws"] = float(NULL_DRAWS[bool(ctx.quick)])
     replication = ne.get("replication", {})
     if replication:
         n_rep = len(SETTINGS.nees_replication_seeds)
         band_rep = nees_band(n_rep, 2, SETTINGS.confidence)
-        rep_ok = True
         for (k, v), (avg, nl) in replication.items():
             key = f"{k}.consistent.v{v}.rep"
             out[f"{key}_nees"] = float(np.mean(avg))
             out[f"{key}_in_band"] = float(np.mean((avg >= band_rep[0]) & (avg <= band_rep[1])))
-            out.update({f"{key}_{n}": x for n, x in _null_test(nl, out[f"{key}_in_band"], out[f"{key}_nees"]).items()})
-            rep_ok = rep_ok and min(out[f"{key}_p_in_band"], out[f"{key}_p_mean"]) >= NULL_ALPHA / len(replication)
-        out["consistent_rep_ok"] = float(rep_ok)
+            stats_ = _null_test(nl, out[f"{key}_in_band"], out[f"{key}_nees"])
+            out.update({f"{key}_{stat}": x for stat, x in stats_.items()})
+        out["consistent_rep_ok"] = float(all(_min_p(out, kv, "rep") >= NULL_ALPHA / len(replication)
+                                             for kv in replication))
         out["rep_seeds"] = float(n_rep)
         out["rep_band_lo"], out["rep_band_hi"] = band_rep
     for (k, c, v), vals in ne["rms"].items():
@@ -1645,8 +1650,7 @@ def nees(ctx: Any) -> dict[str, float]:
                 + f" for N = {n}: there the seed average is closer to one realisation of that error than to an average "
                   f"of {n} independent runs, which the band assumes. ")
     if nulls:
-        sig = [(k, v) for k, v in nulls
-               if min(out[f"{k}.consistent.v{v}.null_p_mean"], out[f"{k}.consistent.v{v}.null_p_in_band"]) < alpha]
+        sig = [kv for kv in nulls if _min_p(out, kv, "null") < alpha]
         txt += (f"Calibrated test (bench.consistency, {int(out['null_draws'])} simulated experiments of the filter's own "
                 "error recursion per cell, the rows' Gauss-Markov errors and the initial error of the states started "
                 "from the scenario shared by the seeds of a path as its truth is: what a consistent filter with these "
@@ -1657,11 +1661,9 @@ def nees(ctx: Any) -> dict[str, float]:
                 + (f"significant at {NULL_ALPHA:g} (Bonferroni over the cells) in {name(sig)}: the failures there "
                    "are not the test's scatter. " if sig else "no cell is significant: the failures are within the "
                    "test's scatter. "))
-    replication = ne.get("replication", {})
-    if "consistent_rep_ok" in out and replication:
+    if replication:
         n_rep = int(out["rep_seeds"])
-        p_rep = {(k, v): min(out[f"{k}.consistent.v{v}.rep_p_mean"], out[f"{k}.consistent.v{v}.rep_p_in_band"])
-                 for k, v in replication}
+        p_rep = {kv: _min_p(out, kv, "rep") for kv in replication}
         sig_rep = [kv for kv, p in p_rep.items() if p < NULL_ALPHA / len(replication)]
         low = min(p_rep, key=lambda kv: (p_rep[kv], kv))
         txt += (f"The same test on {n_rep} seeds of each path (a second look with more power, not independent: the "
