@@ -29,9 +29,9 @@ Paper equation -> code
     (9)          body -> world rotation       bench.kinematics.integrate_se2 (DR), liu_fx (UKF)
     (10)         wheel slip                   slip_rates (repo definition, see below)
     (12), (13a-f), (30) process model         liu_fx
-    (15)-(24)    UKF                          bench.ukf.Ukf
-    (25)-(29)    multi-innovation update      bench.ukf.Ukf(mi_weights=bench.ukf.mi_weights(2, 0.5))
-    (not Liu's)  MI covariance incl. (28)     bench.ukf.Ukf(mi_covariance=True) (consistent configuration)
+    (15)-(24)    UKF                          bench.estimation.ukf.Ukf
+    (25)-(29)    multi-innovation update      bench.estimation.ukf.Ukf(mi_weights=bench.estimation.ukf.mi_weights(2, 0.5))
+    (not Liu's)  MI covariance incl. (28)     bench.estimation.ukf.Ukf(mi_covariance=True) (consistent configuration)
     (31), (32), Appendix  measurement model   liu_hx, LiuUkfParams.r_gnss / r_encoder, _gnss_block,
                                               run_liu_filter (encoder-ICR pseudo-measurement)
     [-20, 20] ICR clamp (Sec. V-B-3)          LiuUkfParams.icr_clamp
@@ -81,7 +81,7 @@ Conventions and deviations (each is a reading of an ambiguous or inconsistent pr
   "Once the GNSS data is blocked or deviated, the previous GNSS data still takes effect in the
   estimate results through ICR kinematics".  As written (and by default here) the ICR is recomputed
   after every update, also during an outage, from velocities that no GNSS constrains any more: on
-  the testbed (tests/test_stress.py, bench/stress.py) it wanders to the [-20, 20] clamp during a
+  the testbed (tests/test_stress.py, bench/robustness/stress.py) it wanders to the [-20, 20] clamp during a
   30 s outage, which ends with up to 180 m of error (median 26 m UKF+ICR, 52 m MI-UKF; DUBHE
   random path, seeds 1-6), back within 2x the pre-fault level within 10 s in 1 of 6 seeds.  With
   the option set, the ICR is held while the latest GNSS fix is older than the timeout, at the
@@ -119,7 +119,7 @@ Conventions and deviations (each is a reading of an ambiguous or inconsistent pr
 * Heading: Liu's MI-UKF chatters at the -pi/pi crossing (Figs. 16-17) because old innovations are
   merged.  Here every heading innovation is wrapped when formed, the stored past corrections are
   those wrapped products, sigma-point heading means use sin/cos averaging and the state is wrapped
-  after every update (bench.ukf), so there is no chattering.
+  after every update (bench.estimation.ukf), so there is no chattering.
 * Process noise w_k (30): Liu gives no sigma_1..4; they are densities per sqrt(second)
   (``q_pos``, ``q_yaw``, ``q_vel``, ``q_yaw_rate``), Q = diag(q^2) dT.  Liu gives no UKF alpha:
   ``SigmaParams()`` (alpha = 1, beta = 2, kappa = 0).
@@ -142,7 +142,7 @@ from numpy.typing import ArrayLike
 from bench.kinematics import icr_forward, integrate_se2
 from bench.registry import Estimate, make_estimate
 from bench.run import Run, RunError, reference_position_noise
-from bench.ukf import FilterError, SigmaParams, Ukf, mi_weights
+from bench.estimation.ukf import FilterError, SigmaParams, Ukf, mi_weights
 
 PAPER = "Liu et al. 2020"
 STATE_NAMES = ("X", "Y", "phi", "v_x", "v_y", "yaw_rate")
@@ -427,7 +427,7 @@ class LiuUkfParams:
     # ICR accepted only when y_l - y_r >= max(icr_min_separation, icr_min_expansion * B) (B: track);
     # 1.0 = the expansion factor chi = (y_l - y_r)/B of a skid-steered vehicle is at least 1
     icr_min_expansion: float = 0.0
-    # MI-UKF covariance that includes the re-applied past correction of eq. (28) (bench.ukf.Ukf mi_covariance;
+    # MI-UKF covariance that includes the re-applied past correction of eq. (28) (bench.estimation.ukf.Ukf mi_covariance;
     # p = 2 only); False: eq. (24), the current gain only (paper)
     mi_covariance: bool = False
 
@@ -612,7 +612,7 @@ def _icr_window_fit(X: np.ndarray, wl: np.ndarray, wr: np.ndarray, r: float, aid
 def run_liu_filter(run: Run, p: LiuUkfParams, name: str = "liu2020.mi_ukf", make_filter: Any = Ukf) -> Estimate:
     """UKF+ICR / MI-UKF over a Run (one filter step per log row).
 
-    ``make_filter`` builds the filter with :class:`bench.ukf.Ukf`'s constructor signature and must
+    ``make_filter`` builds the filter with :class:`bench.estimation.ukf.Ukf`'s constructor signature and must
     offer ``x``, ``P``, ``step``, ``predict(dt, u, Q)`` and ``update(z) -> n_fused``; it exists so
     that tests and benchmarks can run the identical model on a second UKF implementation."""
     g = geometry(run)
@@ -915,7 +915,7 @@ Q_LOG_BOUNDS = (math.log(1e-6), math.log(10.0))  # search range of every process
 
 
 class _InnovationUkf(Ukf):
-    """:class:`bench.ukf.Ukf` that records, for every row of :data:`NIS_BLOCKS`, the normalised innovation
+    """:class:`bench.estimation.ukf.Ukf` that records, for every row of :data:`NIS_BLOCKS`, the normalised innovation
     ``y_j / sqrt(S_jj)`` of each update that fused it."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
@@ -1052,7 +1052,7 @@ class _LiuUkfConsistent(_LiuUkf):
       identified error inflated by the effective-sample factor of its correlation time;
 
     * MI-UKF: the covariance includes the error of the re-applied past correction of eq. (28)
-      (``mi_covariance``, :class:`bench.ukf.Ukf`), which eq. (24) leaves out (then the covariance is
+      (``mi_covariance``, :class:`bench.estimation.ukf.Ukf`), which eq. (24) leaves out (then the covariance is
       that of a different, single-innovation update);
     * process noise of heading, velocity and yaw rate from the innovations on the same calibration runs
       (:func:`match_process_noise`: whiteness for the UKF+ICR, level for the MI-UKF, whose own update

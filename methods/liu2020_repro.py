@@ -56,7 +56,7 @@ Choices (each one stated where the paper is silent or the testbed differs)
   whiteness for UKF+ICR, level for the MI-UKF, ``methods.liu2020.match_process_noise``).  They appear in
   the NEES and outage tables only; Table 2, the motion and ICR tables are the paper's four methods.  Claims ``nees_consistent`` / ``nees_paper``: every scenario's
   seed-averaged 6-state and pose NEES of both filters inside the band at >= 90 % of the steps
-  (``bench.ukf.NEES_MIN_STEP_FRACTION``; Bar-Shalom's per-step test).
+  (``bench.estimation.ukf.NEES_MIN_STEP_FRACTION``; Bar-Shalom's per-step test).
 * Outage: scenario 2 cut to 30 s with ``platform.sensors.gnss.outages = [[8, 28]]``.
 """
 from __future__ import annotations
@@ -77,8 +77,8 @@ from bench.registry import Estimate
 from bench.report.io import atomic_savefig, atomic_write_text
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
-from bench.ukf import NEES_MIN_STEP_FRACTION, nees as nees_values
-from bench.ukf import wrap
+from bench.estimation.ukf import NEES_MIN_STEP_FRACTION, nees as nees_values
+from bench.estimation.ukf import wrap
 from methods import liu2020
 
 __all__ = ["table2", "table2_gnss", "motion", "icr", "heading", "nees", "outage", "Settings", "mean_ci", "nees_band",
@@ -538,7 +538,7 @@ def heading(ctx: Any) -> dict[str, float]:
         f"{sum(crossings)} true -pi/pi crossings over {len(crossings)} seeds; largest step excess over "
         f"|yaw rate| dt + {cfg.heading_margin} rad: UKF+ICR {out['ukf_icr.max_excess']:.2e}, MI-UKF "
         f"{out['mi_ukf.max_excess']:.2e} rad (max step {out['mi_ukf.max_step']:.2e} rad). Heading innovations, "
-        "stored multi-innovation corrections and the state are wrapped (bench.ukf)."))
+        "stored multi-innovation corrections and the state are wrapped (bench.estimation.ukf)."))
     path = ctx.out_dir / "liu2020_heading.png"
     _heading_figure(path, ev)
     ctx.figure(path, "Heading through the -pi/pi crossing, scenario 3 started at -2.8 rad (Liu Fig. 17 equivalent)")
@@ -683,7 +683,7 @@ def nees(ctx: Any) -> dict[str, float]:
             for b, val in cn.items():
                 out[f"calib.{m}.nees_{b}"] = val
     for tag, fs in (("paper", FILTERS), ("consistent", tuple(CONSISTENT))):
-        # the test (bench.ukf.NEES_MIN_STEP_FRACTION): seed-averaged NEES in band at >= 90% of the steps
+        # the test (bench.estimation.ukf.NEES_MIN_STEP_FRACTION): seed-averaged NEES in band at >= 90% of the steps
         ok6 = all(out[f"{k}.{f}.in_band"] >= NEES_MIN_STEP_FRACTION for k in ev.scenarios for f in fs)
         ok3 = all(out[f"{k}.{f}.pose_in_band"] >= NEES_MIN_STEP_FRACTION for k in ev.scenarios for f in fs)
         out[f"{tag}_in_band"] = float(ok6 and ok3)

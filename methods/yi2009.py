@@ -201,7 +201,7 @@ from scipy.linalg import lapack
 from scipy.optimize import least_squares
 from scipy.signal import savgol_filter
 
-from bench.consistency import Linearisation
+from bench.estimation.consistency import Linearisation
 from bench.registry import Estimate, make_estimate
 from bench.run import (Run, RunError, encoder_count_speed, reference_position_noise, sensor_spec,
                        sensor_spec_value)
@@ -570,7 +570,7 @@ class Yi2009Ekf:
     yaw rate (10e)), slip_l, slip_r (eq. (6) from the posterior), x_icr (S of (41) used in (15),
     variant 3 only) and the extra columns z, vz, roll, pitch (Fig. 8).  Geometry (wheel_radius,
     track = W) from ``run.meta["platform"]``.  With ``store_covariance=True`` the posterior covariance
-    of (26f) at every step is ``info["P"]`` (n, 9, 9) (used by the stress tests, bench/stress.py)."""
+    of (26f) at every step is ``info["P"]`` (n, 9, 9) (used by the stress tests, bench/robustness/stress.py)."""
 
     variant: int = 3
     s_gamma: SGamma = PUBLISHED_S_GAMMA
@@ -1188,7 +1188,7 @@ def run_filter_gm(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarr
     ``vx_skip``) breaks the window: it restarts after that step, unfused.  Stochastic cloning of the odometer
     displacement (Roumeliotis & Burdick 2002, ICRA) reduced to the one coordinate the row measures.
     ``store_lin``: also return the filter's linearised error recursion (``FilterResult.lin``, a
-    :class:`bench.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q' (I - K H)^T + K R K^T, P_k,
+    :class:`bench.estimation.consistency.Linearisation`: A_k = (I - K H) F, C_k = (I - K H) Q' (I - K H)^T + K R K^T, P_k,
     with Q' = Q without the Gauss-Markov states' driving noise, which is the ``shared`` loading (I - K H) G_b Q_b^(1/2)
     instead, and at k = 0 their initial sd (P0's): the rows' errors b are functions of the path, the same in every
     seed of a scenario) for the null distribution of the NEES test (not with quantisation states).
@@ -2063,7 +2063,7 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     odometer_window: float = 0.2  # [s] the v_x row fused as the odometer's displacement over windows (odo_window)
     start_yaw_sd: float | None = 1e-4  # [rad] yaw P0 sd (None: params.p0_yaw): the start heading is the frame
     reference_turn_noise: bool = True  # identify_yi_noise: the reference's noise rotated at the yaw rate (False: not)
-    store_linearisation: bool = False  # info["lin"]: the error recursion (bench.consistency) for the NEES null test
+    store_linearisation: bool = False  # info["lin"]: the error recursion (bench.estimation.consistency) for the NEES null test
     noise_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
 
     @property

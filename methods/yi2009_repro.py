@@ -109,8 +109,9 @@ from bench.registry import Estimate
 from bench.report.io import atomic_savefig, atomic_write_text
 from bench.run import Run, RunError
 from bench.spec import Scenario, load_scenario
-from bench.consistency import NullNees, simulate_nees, truncated_sum
-from bench.ukf import NEES_MIN_STEP_FRACTION
+from bench.estimation.consistency import NullNees, simulate_nees, truncated_sum
+from bench.estimation.ukf import NEES_MIN_STEP_FRACTION
+from bench.estimation.nees import horizontal_velocity_error, velocity_nees_series
 from methods.yi2009 import (ADAPTIVE_R_FLOOR, GM_NEGLIGIBLE_SIGMA, PUBLISHED_S_GAMMA, SLIP_CLIP_TOL, EkfParams,
                             Yi2009Ekf, Yi2009EkfConsistent, _moving, _row_offsets, align_inputs, encoder_odometer_sd,
                             fit_s_gamma, reference_s_gamma_point, traction_transient)
@@ -790,7 +791,7 @@ def diagnosis(ctx: Any) -> dict[str, float]:
 
 
 # ----------------------------------------------------------------------------------- NEES (issue 4)
-NEES_T_MIN = 5.0  # [s] NEES window start (as bench.stress.yi_velocity_nees)
+NEES_T_MIN = 5.0  # [s] NEES window start (as bench.robustness.stress.yi_velocity_nees)
 NEES_CONFIGS = ("paper", "consistent")
 # Ablation of the consistent configuration (full mode only): one of its choices switched back at a time, same
 # calibration runs; (Yi2009EkfConsistent fields, schemes where the choice applies)
@@ -849,35 +850,11 @@ def nees_band(n_runs: int, dof: int, confidence: float = 0.95) -> tuple[float, f
     return float(stats.chi2.ppf(a, n_runs * dof) / n_runs), float(stats.chi2.ppf(1 - a, n_runs * dof) / n_runs)
 
 
-def _horizontal_velocity_error(run: Run, est: Estimate) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(e (n, 2), cos yaw, sin yaw): the horizontal V_I error at the estimate's steps, the estimate's body velocity
-    rotated by its yaw minus the truth's rotated by the true yaw, and the estimated heading's cos / sin."""
-    t = est["t"]
-    tv = {c: np.interp(t, run.t, run[f"truth_{c}"]) for c in ("vx", "vy")}
-    tyaw = np.interp(t, run.t, np.unwrap(run["truth_yaw"]))
-    c, s_ = np.cos(est["yaw"]), np.sin(est["yaw"])
-    ct, st = np.cos(tyaw), np.sin(tyaw)
-    e = np.column_stack((c * est["vx"] - s_ * est["vy"] - (ct * tv["vx"] - st * tv["vy"]),
-                         s_ * est["vx"] + c * est["vy"] - (st * tv["vx"] + ct * tv["vy"])))
-    return e, c, s_
-
-
-def velocity_nees_series(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
-    """Per-step NEES of the horizontal velocity V_I (x, y) (state block 3:5 of ``est.info["P"]``, 2 dof)
-    against the testbed truth after ``t_min`` s (:func:`_horizontal_velocity_error`; bench.stress.yi_velocity_nees
-    is the mean of this series)."""
-    from bench.ukf import nees as nees_values
-
-    e, _, _ = _horizontal_velocity_error(run, est)
-    m = est["t"] >= t_min
-    return np.asarray(nees_values(e[m], est.info["P"][m][:, 3:5, 3:5]), dtype=float)
-
-
 def body_velocity_errors(run: Run, est: Estimate, t_min: float = NEES_T_MIN) -> np.ndarray:
     """(T, 4) per step after ``t_min``: the horizontal velocity error of :func:`velocity_nees_series` and its
     covariance (block 3:5 of ``est.info["P"]``) rotated into the estimate's heading frame: error along / across
     the heading, and the standard deviation the filter claims along / across (which axis is over- or under-covered)."""
-    e, c, s_ = _horizontal_velocity_error(run, est)
+    e, c, s_ = horizontal_velocity_error(run, est)
     P = est.info["P"][:, 3:5, 3:5]
     pxx = c * c * P[:, 0, 0] + 2 * c * s_ * P[:, 0, 1] + s_ * s_ * P[:, 1, 1]
     pyy = s_ * s_ * P[:, 0, 0] - 2 * c * s_ * P[:, 0, 1] + c * c * P[:, 1, 1]
@@ -1022,7 +999,7 @@ def _nees_replication(ctx: Any, methods: Mapping[tuple[str, int], Yi2009EkfConsi
     (path, scheme) the observed seed-averaged NEES series and the null's statistics for that many runs
     (``NULL_DRAWS_REPLICATION`` experiments; the stream seeds of :func:`_nees_evaluate`, but with fewer experiments
     the draws differ).  Not independent of the main test: the same path (one realisation of its model errors) and
-    its seeds among these.  Sums over the seeds as they come (:func:`bench.consistency.truncated_sum`)."""
+    its seeds among these.  Sums over the seeds as they come (:func:`bench.estimation.consistency.truncated_sum`)."""
     seeds = SETTINGS.nees_replication_seeds
     keys = [(k, s) for k in PATHS for s in seeds if (k, s) not in runs]
     all_runs = {**runs, **dict(zip(keys, ctx.simulate_many([(scored[k], s) for k, s in keys])))}
@@ -1141,7 +1118,7 @@ def nees_summary(series: Mapping[tuple[str, str, int], np.ndarray], n_seeds: int
     """Metrics of the nees table from per-step NEES arrays (n_seeds, T): ``<path>.<config>.v<k>.nees`` (time
     mean of the seed-averaged NEES), ``.in_band`` / ``.below`` / ``.above`` (fraction of steps whose seed-averaged
     NEES is inside / below / above the band; they sum to 1), ``<config>_in_band`` = 1 when every path's and scheme's seed-averaged NEES is in the
-    band at >= ``bench.ukf.NEES_MIN_STEP_FRACTION`` of the steps (Bar-Shalom's test), and ``<config>_mean_in_band``
+    band at >= ``bench.estimation.ukf.NEES_MIN_STEP_FRACTION`` of the steps (Bar-Shalom's test), and ``<config>_mean_in_band``
     (reported only) = 1 when every time mean lies in the band."""
     lo, hi = nees_band(n_seeds, dof, confidence)
     out: dict[str, float] = {"band_lo": lo, "band_hi": hi, "n_seeds": float(n_seeds)}
@@ -1398,7 +1375,7 @@ def nees(ctx: Any) -> dict[str, float]:
         nd = int(out["null_draws"])
         n_cells = len(nulls)
         lines += ["", "## Null distribution: what a consistent filter with the same error dynamics would give", "",
-                  f"bench.consistency: {nd} simulated experiments of {n} runs, each run the consistent filter's own "
+                  f"bench.estimation.consistency: {nd} simulated experiments of {n} runs, each run the consistent filter's own "
                   "linearised error recursion on that seed (e_k = (I - K H) F e_(k-1) + w_k, Cov w_k the Joseph "
                   "form's noise terms, e_0 ~ N(0, P_0): errors of a filter whose model is true, with the time "
                   "correlation of this filter on this path). The seeds of a path share its truth (the physics is the "
@@ -1651,7 +1628,7 @@ def nees(ctx: Any) -> dict[str, float]:
                   f"of {n} independent runs, which the band assumes. ")
     if nulls:
         sig = [kv for kv in nulls if _min_p(out, kv, "null") < alpha]
-        txt += (f"Calibrated test (bench.consistency, {int(out['null_draws'])} simulated experiments of the filter's own "
+        txt += (f"Calibrated test (bench.estimation.consistency, {int(out['null_draws'])} simulated experiments of the filter's own "
                 "error recursion per cell, the rows' Gauss-Markov errors and the initial error of the states started "
                 "from the scenario shared by the seeds of a path as its truth is: what a consistent filter with these "
                 "error dynamics gives): the >= "

@@ -475,7 +475,7 @@ def test_encoder_count_speed_reads_the_spec_or_gives_none(meta: dict, expect: fl
 def test_bad_spec_values_are_named_with_the_value_found() -> None:
     """The reference noise and IMU saturation readers name the key and the value they found (a string, a negative
     number), not a None from the conversion."""
-    from bench.faults import imu_saturation
+    from bench.robustness.faults import imu_saturation
     from bench.run import reference_position_noise
 
     run = from_arrays({"t": np.arange(3) * 0.1}, {"run_id": "imported", "platform": {"sensors": {

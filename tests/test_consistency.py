@@ -1,11 +1,11 @@
-"""bench.consistency: the null distribution of the NEES test statistics from a filter's own error recursion."""
+"""bench.estimation.consistency: the null distribution of the NEES test statistics from a filter's own error recursion."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from bench.consistency import Linearisation, NullNees, null_nees, simulate_nees, truncated_sum
+from bench.estimation.consistency import Linearisation, NullNees, null_nees, simulate_nees, truncated_sum
 from methods.yi2009 import (PUBLISHED_S_GAMMA, EkfParams, GaussMarkov, align_inputs, initial_state, run_filter_gm,
                            shared_initial_states)
 from tests.test_yi2009 import R_WHEEL, TRACK, synthetic_run

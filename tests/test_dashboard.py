@@ -245,7 +245,7 @@ def test_bad_history_is_named_by_file_line_and_field(tmp_path):
 
 
 def test_cli_dashboard_command(tmp_path, capsys):
-    import bench.cli_dashboard  # noqa: F401  (registers the command; bench.cli loads it too once listed)
+    import bench.cli.dashboard  # noqa: F401  (registers the command; bench.cli loads it too once listed)
     from bench.cli import main
 
     res = _write_results(tmp_path / "results", _history())

@@ -1,4 +1,4 @@
-"""Tests of bench.drive: the DRIVE window-table importer.
+"""Tests of bench.real.drive: the DRIVE window-table importer.
 
 Two sources of truth:
 * a synthetic DRIVE table cut from a known continuous 20 Hz log by an independent (planar)
@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.drive import DRIVE_DT, import_drive, import_drive_windows, main, resolve_platform
+from bench.real.drive import DRIVE_DT, import_drive, import_drive_windows, main, resolve_platform
 from bench.run import RunError
 from bench.spec import SpecError, load_platform
 

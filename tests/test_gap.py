@@ -252,7 +252,7 @@ def test_report_files_and_json_contract(sim, tmp_path):
 
 
 def test_cli_gap_writes_json(sim, tmp_path):
-    import bench.cli_gap  # noqa: F401  (registers the command)
+    import bench.cli.gap  # noqa: F401  (registers the command)
     from bench.cli import main
 
     measured = sim(SCN, 1, **{"terrain__rolling_resistance": 0.06})

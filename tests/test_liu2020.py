@@ -20,7 +20,7 @@ from bench.kinematics import icr_forward, integrate_se2
 from bench.registry import Method
 from bench.run import Run, RunError, from_arrays
 from bench.spec import load_platform, to_dict
-from bench.ukf import FilterError, nees
+from bench.estimation.ukf import FilterError, nees
 from tests.test_ukf import _sincos_mean, _wrapped_resid  # FilterPy adapters, shared
 from methods.liu2020 import EnDr, IcrDr, LiuUkfParams, MiUkf, UkfIcr, fit_icr, run_liu_filter
 
@@ -142,7 +142,7 @@ def start_aligned_rms(est, run: Run) -> float:
 
 # ----------------------------------------------------------------------------- FilterPy twin
 class FilterPyUkf:
-    """FilterPy's UnscentedKalmanFilter + MerweScaledSigmaPoints behind bench.ukf.Ukf's interface,
+    """FilterPy's UnscentedKalmanFilter + MerweScaledSigmaPoints behind bench.estimation.ukf.Ukf's interface,
     running the same model functions (one sigma point at a time, as FilterPy calls them), the same
     sin/cos mean, wrapped residuals and wrapped state add.  NaN elements are dropped by passing
     FilterPy the reduced z, h and R.  No multi-innovation (FilterPy has none); its covariance update

@@ -16,7 +16,7 @@ import pytest
 
 from bench import registry
 from bench import reproduce as R
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import load_scenario
 from methods import liu2020_repro as L
 from methods.liu2020 import fit_icr

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from bench import reproduce as R
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from methods import mandow2007 as M
 from methods import mandow2007_repro as MR
 from methods import wang2015 as W

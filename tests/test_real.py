@@ -1,4 +1,4 @@
-"""Tests of bench.real: the real-data benchmark harness.
+"""Tests of bench.real.benchmark: the real-data benchmark harness.
 
 Independent expectations: per-window loops written here (exact constant-twist arcs; a substepped
 Euler integration with its own error bound; Wang eq. (25) by hand), parameter recovery on windows
@@ -13,9 +13,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.drive import DRIVE_DT, DriveWindows, import_drive_windows
+from bench.real.drive import DRIVE_DT, DriveWindows, import_drive_windows
 from bench.kinematics import integrate_se2
-from bench.real import (
+from bench.real.benchmark import (
     ICR_FAMILY, AsymmetricICR, IdealDD, PluginModel, SymmetricChi, WangChiCurve, YiSGamma, end_errors,
     integrate_windows, run_real_benchmark, split_steps, wang_chi, window_chi, yi_s_points,
 )
@@ -365,7 +365,7 @@ def test_testbed_chi_of_the_husky_model_matches_the_closed_form_at_pure_rotation
     model near pure rotation (the J-H patch law stays within a few %); NaN for another platform."""
     import math
 
-    from bench.real import testbed_chi
+    from bench.real.benchmark import testbed_chi
     from bench.spec import load_platform
 
     h = load_platform("husky")

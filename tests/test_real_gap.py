@@ -1,4 +1,4 @@
-"""Tests of bench.real_gap: the gap workflow with the testbed's husky model on the real DRIVE data.
+"""Tests of bench.real.gap: the gap workflow with the testbed's husky model on the real DRIVE data.
 
 Skipped with a message when the real table is absent (``SKIDBENCH_DATA``, as tests/test_drive.py).
 Independent expectations: the step structure recomputed from the raw table; the held-out residuals
@@ -15,10 +15,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.drive import import_drive
+from bench.real.drive import import_drive
 from bench.gap.catalogue import get
 from bench.gap import model as gap_model
-from bench.real_gap import CONTINUITY, SCENARIO, GapRunConfig, run_real_gap
+from bench.real.gap import CONTINUITY, SCENARIO, GapRunConfig, run_real_gap
 from bench.spec import load_scenario
 from tests.test_strict_json import strict_loads
 from tests.test_drive import N, husky_df, raw  # noqa: F401  (fixture)
@@ -69,7 +69,7 @@ def test_steps_split_and_files(gap_run: dict, husky_df: pd.DataFrame) -> None:
     fit, held = doc["fit_steps"], doc["held_out_steps"]
     assert len(fit) == 1 and len(held) == 2 and not set(fit) & set(held)
     # fit on the calibration half, held out from the test half of the real benchmark's split
-    from bench.real import split_steps
+    from bench.real.benchmark import split_steps
 
     calib, test = split_steps(_windows(husky_df.iloc[:30]), 0)
     assert set(fit) <= set(calib.tolist()) and set(held) <= set(test.tolist())
@@ -84,7 +84,7 @@ def test_steps_split_and_files(gap_run: dict, husky_df: pd.DataFrame) -> None:
 def _windows(df: pd.DataFrame):
     import tempfile
 
-    from bench.drive import import_drive_windows
+    from bench.real.drive import import_drive_windows
 
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "s.parquet"
@@ -141,8 +141,8 @@ def test_held_out_residuals_recomputed(gap_run: dict, slice30: Path) -> None:
 
 
 def test_fit_block_steps_follow_in_time(husky_df: pd.DataFrame) -> None:
-    """bench.real_gap.fit_block against the raw table: adjacent rows, wheel speeds continuous."""
-    from bench.real_gap import continuous_with_previous, fit_block
+    """bench.real.gap.fit_block against the raw table: adjacent rows, wheel speeds continuous."""
+    from bench.real.gap import continuous_with_previous, fit_block
 
     w = _windows(husky_df.iloc[:60])
     cont = continuous_with_previous(w)
@@ -164,7 +164,7 @@ def test_command_tracking_slopes() -> None:
     """Synthetic steady windows whose wheels run at 1.5 x the commanded half-sum and 0.4 x the
     commanded difference: the slopes come back; the yaw-rate maxima are the arrays' own."""
     from tests.test_real import B, R, make_windows
-    from bench.real_gap import command_tracking
+    from bench.real.gap import command_tracking
 
     rng = np.random.default_rng(5)
     cl, cr = rng.uniform(-8, 8, (30, 1)), rng.uniform(-8, 8, (30, 1))

@@ -10,9 +10,9 @@ import textwrap
 import pytest
 
 from bench import reproduce as R
-from bench.cli_more import compare_metrics
+from bench.cli.more import compare_metrics
 from bench.report.io import dumps_json
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import SpecError
 from bench.spec import load_scenario
 
@@ -253,10 +253,10 @@ def test_extra_is_kept_only_while_the_results_folder_holds_its_output(tmp_path, 
     marker of the earlier format without the record recomputes it; an unchanged folder keeps it."""
     import argparse
 
-    import bench.cli_more as C
-    import bench.runner
+    import bench.cli.more as C
+    import bench.reproduce.runner
 
-    monkeypatch.setattr(bench.runner, "DEFAULT_CACHE", tmp_path / "cache" / "runs")
+    monkeypatch.setattr(bench.reproduce.runner, "DEFAULT_CACHE", tmp_path / "cache" / "runs")
     calls = []
 
     def fake_extra(results_dir, quick, workers=1):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -54,8 +54,8 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
     for p in cache.glob("*.parquet"):
         Run.from_parquet(p)  # every cached run is whole
     # the next reproduce removes such temp files before it starts
-    import bench.runner as runner_mod
-    from bench.cli_more import _remove_stale_temp_files
+    import bench.reproduce.runner as runner_mod
+    from bench.cli.more import _remove_stale_temp_files
 
     (cache / ".stale.parquet.abc123.tmp").write_bytes(b"half a parquet")
     saved = runner_mod.DEFAULT_CACHE
@@ -66,7 +66,7 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
         runner_mod.DEFAULT_CACHE = saved
     assert not [p for d in (results, cache) if d.exists() for p in d.rglob(".*.tmp")]
     # resume: the cached runs are not simulated again
-    from bench.league import calibration_set
+    from bench.reproduce.league import calibration_set
     scn = load_scenario("circle_vinyl", {"duration": 12.0})
     r = Runner(cache_dir=cache)
     r.simulate_many(calibration_set(scn, quick=True))
@@ -75,7 +75,7 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
 
 def test_league_cells_in_parallel_equal_serial(tmp_path):
     """The league's cells run as process-pool jobs with workers > 1: the same table as serial."""
-    from bench.league import league_csv, run_league
+    from bench.reproduce.league import league_csv, run_league
 
     kw = dict(quick=True, methods=["baseline.ideal_dd", "wang2015.constant_chi", "mandow2007.symmetric"],
               scenarios=("circle_vinyl", "yi_circle"))

@@ -1,8 +1,8 @@
-"""Filters under stress (bench/faults.py, bench/stress.py).
+"""Filters under stress (bench/robustness/faults.py, bench/robustness/stress.py).
 
 Issue: 1-hour runs, a 30 s GNSS outage, IMU saturation spikes and encoder dropouts: no NaN, the
 covariance stays positive definite, and the estimate recovers after the fault (position error back
-within 2x its pre-fault level within 10 s of the fault's end; bench/faults.py gives the exact
+within 2x its pre-fault level within 10 s of the fault's end; bench/robustness/faults.py gives the exact
 definition).
 
 * Fault functions and measures: synthetic Runs with closed-form expectations.
@@ -28,9 +28,9 @@ import math
 import numpy as np
 import pytest
 
-from bench import faults as F
+from bench.robustness import faults as F
 from bench import registry
-from bench import stress as S
+from bench.robustness import stress as S
 from bench.run import Run, RunError, from_arrays
 
 SEED = 1

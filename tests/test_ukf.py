@@ -1,4 +1,4 @@
-"""Tests of the shared UKF core (bench/ukf.py).
+"""Tests of the shared UKF core (bench/estimation/ukf.py).
 
 Independent expectations: FilterPy's UnscentedKalmanFilter + MerweScaledSigmaPoints (a second
 implementation), the closed-form linear Kalman filter (a UKF is exact on a linear-Gaussian model),
@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from filterpy.kalman import MerweScaledSigmaPoints, UnscentedKalmanFilter
 
-from bench.ukf import FilterError, SigmaParams, Ukf, merwe_weights, mi_weights, nees, wrap
+from bench.estimation.ukf import FilterError, SigmaParams, Ukf, merwe_weights, mi_weights, nees, wrap
 
 ALPHA, BETA, KAPPA = 0.5, 2.0, 1.0
 LANDMARKS = np.array([[10.0, 5.0], [-4.0, 12.0]])

@@ -20,11 +20,11 @@ from scipy import stats
 from scipy.optimize import curve_fit
 
 from bench import reproduce as R
-from bench.consistency import NullNees
+from bench.estimation.consistency import NullNees
 from bench.kinematics import integrate_se2
 from bench.registry import calibrated_on
 from bench.run import RunError, from_arrays
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import load_platform, load_scenario, to_dict
 from methods import yi2009_repro as Y
 from methods.yi2009 import PUBLISHED_S_GAMMA
@@ -299,7 +299,7 @@ def test_nees_band_flags_and_fractions_equal_a_recomputation(result) -> None:
         assert m[f"nees.{path}.{cfg}.v{v}.below"] == pytest.approx(sum(1 for a in avg if a < lo) / avg.size, abs=1e-12)
         assert (m[f"nees.{path}.{cfg}.v{v}.in_band"] + m[f"nees.{path}.{cfg}.v{v}.below"]
                 + m[f"nees.{path}.{cfg}.v{v}.above"]) == pytest.approx(1.0, abs=1e-12)
-        flags[cfg] = flags[cfg] and inside >= 0.9  # Bar-Shalom's per-step test (bench.ukf.NEES_MIN_STEP_FRACTION)
+        flags[cfg] = flags[cfg] and inside >= 0.9  # Bar-Shalom's per-step test (bench.estimation.ukf.NEES_MIN_STEP_FRACTION)
         mean_flags[cfg] = mean_flags[cfg] and lo <= mean <= hi
         assert m[f"nees.{path}.{cfg}.v{v}.pos_rms"] == pytest.approx(np.mean(ne["rms"][(path, cfg, v)]), rel=1e-12)
     assert m["nees.paper_in_band"] == float(flags["paper"]) and m["nees.consistent_in_band"] == float(flags["consistent"])
@@ -372,10 +372,10 @@ def test_body_velocity_errors_rotate_the_error_and_its_covariance() -> None:
 
 
 def test_consistent_plugins_calibrate_on_a_league_calibration_set() -> None:
-    """The league calibrates the registered consistent plugins on bench.league.calibration_set (runs that start
+    """The league calibrates the registered consistent plugins on bench.reproduce.league.calibration_set (runs that start
     moving: no rest for the IMU noise): calibration succeeds with the paper's IMU noise / P0 ("paper default"),
     scheme 3 fits S(gamma) on those runs (refit_s_gamma), and the estimate on the scored path runs, finite."""
-    from bench import league
+    from bench.reproduce import league
     from bench.registry import calibrate, estimate
     from bench.sim import simulate
     from methods.yi2009 import EkfParams, ekf_v3_consistent

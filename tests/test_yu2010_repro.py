@@ -16,7 +16,7 @@ import pytest
 from bench import reproduce as R
 from bench.registry import CalibrationLeak, estimate
 from bench.run import from_arrays
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import load_platform
 from methods.yu2010 import ResistanceTable, YuParams, simulate_closed_loop
 from methods.yu2010 import repro

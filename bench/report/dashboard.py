@@ -24,7 +24,7 @@ an ``<svg class="chart">`` with ``data-points`` (finite points drawn); a short i
 in the browser that every chart's data series has a non-empty laid-out box and as many markers as
 declared, marks each chart ``data-rendered="ok"|"empty"`` and writes the totals into
 ``#render-status`` (read by the headless-Chromium test).  Steps between consecutive runs of the same
-mode use :func:`bench.cli_more.compare_metrics`, the same rule as ``skidbench compare``.
+mode use :func:`bench.cli.more.compare_metrics`, the same rule as ``skidbench compare``.
 
 Output is a pure function of the input files (no clock, sorted keys): rendering twice gives the same
 bytes.  Every file is written atomically.
@@ -169,9 +169,9 @@ def find_steps(entries: Sequence[Entry], metric_ids: Sequence[str],
                baselines: Mapping[str, Mapping[str, Any]]) -> list[Step]:
     """Changes beyond tolerance between consecutive runs (same mode) that both ran the metric's paper.
 
-    The rule is :func:`bench.cli_more.compare_metrics` (the one ``skidbench compare`` applies), with
+    The rule is :func:`bench.cli.more.compare_metrics` (the one ``skidbench compare`` applies), with
     each metric's tolerance from the baseline metrics.json (else bench.reproduce's default)."""
-    from bench.cli_more import compare_metrics
+    from bench.cli.more import compare_metrics
 
     steps: list[Step] = []
     by_paper: dict[str, list[str]] = {}

@@ -53,7 +53,7 @@ def run_asv(repo: Path, results_dir: Path, html_dir: Path) -> int:
 
 def _dashboard(a: argparse.Namespace) -> int:
     from bench.report.dashboard import render_dashboard
-    from bench.runner import REPO
+    from bench.reproduce.runner import REPO
 
     results = a.results or (REPO / "results")
     out = a.out or (results / "dashboard")

@@ -19,7 +19,7 @@ from typing import Callable, Sequence
 from bench.run import Run
 from bench.spec import Scenario
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 DEFAULT_CACHE = Path(os.environ.get("SKIDBENCH_CACHE", REPO / ".cache" / "runs"))
 
 

@@ -179,7 +179,7 @@ def _load_optional_commands() -> None:
     """Commands defined next to their feature (reproduce, gap, formats, ...) register themselves."""
     import importlib
 
-    for mod in ("bench.cli_more", "bench.cli_dashboard", "bench.cli_gap"):
+    for mod in ("bench.cli.more", "bench.cli.dashboard", "bench.cli.gap"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:
@@ -201,7 +201,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # run through the imported module so that commands registered by bench.cli_more land in the
+    # run through the imported module so that commands registered by bench.cli.more land in the
     # same COMMANDS table (``python -m bench.cli`` would otherwise have two copies of this module)
     from bench.cli import main as _main
 

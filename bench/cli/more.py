@@ -41,7 +41,7 @@ def register_extra(name: str):
 def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
     """A marker per (extra, everything it depends on): code, specs, data, output folder."""
     from bench.reproduce import code_key
-    from bench.runner import DEFAULT_CACHE
+    from bench.reproduce.runner import DEFAULT_CACHE
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
@@ -85,7 +85,7 @@ def _extra_kept(marker: Path, results_dir: Path) -> bool:
 def _remove_stale_temp_files(results_dir: Path) -> None:
     """Temp files of an interrupted earlier run (``.<name>.<random>.tmp``: the atomic writes never
     give them a final name) are deleted before a new run starts."""
-    from bench.runner import DEFAULT_CACHE
+    from bench.reproduce.runner import DEFAULT_CACHE
 
     for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
         if folder.is_dir():
@@ -195,14 +195,14 @@ command("compare", "list metrics that moved beyond tolerance; non-zero exit on r
 # ------------------------------------------------------------------------------------------ real data
 def data_root() -> Path:
     """Where measured data lives: $SKIDBENCH_DATA, else ../shared/data beside the repository."""
-    from bench.runner import REPO
+    from bench.reproduce.runner import REPO
 
     return Path(os.environ.get("SKIDBENCH_DATA", REPO.parent / "shared" / "data"))
 
 
 @register_extra("real")
 def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: < 1 min
-    from bench.real import run_real_benchmark
+    from bench.real.benchmark import run_real_benchmark
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     if not table.is_file():
@@ -212,8 +212,8 @@ def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # se
     v = res["verdict"]
     print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
           f"{v['ideal_dd_median_trans']:.3f} m ({res['runtime_s']:.1f} s)")
-    # the gap workflow with the testbed's husky model against the same data (bounded: bench.real_gap.BOUNDED)
-    from bench.real_gap import BOUNDED, run_real_gap
+    # the gap workflow with the testbed's husky model against the same data (bounded: bench.real.gap.BOUNDED)
+    from bench.real.gap import BOUNDED, run_real_gap
 
     gap = run_real_gap(table, results_dir / "real", config=BOUNDED)
     ho = gap["doc"]["held_out"]["cost"]
@@ -230,7 +230,7 @@ def _drive_args(p: argparse.ArgumentParser) -> None:
 
 
 def _import_drive(a: argparse.Namespace) -> int:
-    from bench.drive import import_drive
+    from bench.real.drive import import_drive
 
     runs = import_drive(a.table, a.platform, a.wheel_radius, a.track)
     for r in runs:
@@ -305,7 +305,7 @@ def _verify_args(p: argparse.ArgumentParser) -> None:
 
 def _verify(a: argparse.Namespace) -> int:
     from bench.reproduce import RESULTS
-    from bench.runner import verify_manifest
+    from bench.reproduce.runner import verify_manifest
 
     path = a.manifest or RESULTS / "runs_manifest.json"
     manifest = json.loads(path.read_text())
@@ -322,8 +322,8 @@ command("verify-runs", "re-simulate the runs of a manifest and check identical c
 
 @register_extra("league")
 def _extra_league(results_dir: Path, quick: bool, workers: int = 1) -> None:
-    from bench.league import write_league
-    from bench.runner import Runner
+    from bench.reproduce.league import write_league
+    from bench.reproduce.runner import Runner
 
     write_league(results_dir, quick, Runner(workers=workers))
 
@@ -338,12 +338,12 @@ def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # ser
 @register_extra("stress")
 def _extra_stress(results_dir: Path, quick: bool, workers: int = 1) -> None:
     """Filters under stress (``results/stress.md``): in ``make reproduce`` the short runs of seed 1
-    (``bench.stress.QUICK``, ~1.5 min on 2 cores); the six-seed + 1-hour table (``bench.stress.FULL``,
-    tens of minutes) is ``python -c "from bench.stress import stress_report; stress_report('results',
+    (``bench.robustness.stress.QUICK``, ~1.5 min on 2 cores); the six-seed + 1-hour table (``bench.robustness.stress.FULL``,
+    tens of minutes) is ``python -c "from bench.robustness.stress import stress_report; stress_report('results',
     quick=False)"``.  Skipped by ``reproduce --quick`` (CI): ``make test`` runs the stress tests."""
     if quick:
         print("stress: skipped in --quick (tests/test_stress.py runs in make test)")
         return
-    from bench.stress import stress_report
+    from bench.robustness.stress import stress_report
 
     print(f"stress: {stress_report(results_dir, quick=True, workers=workers)}")

@@ -34,7 +34,7 @@ heading): with the mean, the criterion flagged 8 of 24 fault-free windows of the
 percentile 1 of 24 (a real 0.19 m excursion of the fault-free run).  A criterion that flags
 fault-free runs measures noise, not recovery (tests/test_stress.py checks the fault-free run).
 
-:func:`bench.stress.stress_report` runs every filter on every fault and writes ``results/stress.md``.
+:func:`bench.robustness.stress.stress_report` runs every filter on every fault and writes ``results/stress.md``.
 """
 from __future__ import annotations
 

@@ -5,7 +5,7 @@ the chi-square band chi2(N n_x)/N.  For a consistent filter each step is inside 
 the steps are not independent: when the error is a slowly varying quantity (an integrated random walk, a bias) the
 N-run average stays on one side of the band for long stretches, so the *fraction* of steps in the band, and the
 time mean of the average NEES, scatter far more than independent steps would.  A fixed threshold on the fraction
-(``bench.ukf.NEES_MIN_STEP_FRACTION``) then fails a consistent filter often (a random-walk error with 5 runs:
+(``bench.estimation.ukf.NEES_MIN_STEP_FRACTION``) then fails a consistent filter often (a random-walk error with 5 runs:
 about 1 experiment in 5 below 90 %; measured in tests/test_consistency.py).
 
 This module simulates what a consistent filter would give on the same experiment: the linearised error recursion

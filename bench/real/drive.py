@@ -496,8 +496,8 @@ def import_drive(path: str | Path, platform: str | Path | Platform | Mapping[str
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m bench.drive TABLE --platform husky [--wheel-radius R --track B] [--out DIR]``."""
-    ap = argparse.ArgumentParser(prog="python -m bench.drive", description=main.__doc__)
+    """``python -m bench.real.drive TABLE --platform husky [--wheel-radius R --track B] [--out DIR]``."""
+    ap = argparse.ArgumentParser(prog="python -m bench.real.drive", description=main.__doc__)
     ap.add_argument("table", type=Path)
     ap.add_argument("--platform", default=None, help="platform name or TOML path")
     ap.add_argument("--wheel-radius", type=float, default=None, help="[m], overrides the platform")

@@ -54,7 +54,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from bench.report.io import atomic_path, atomic_write_json, atomic_write_text, dumps_json
-from bench.runner import REPO, Runner
+from bench.reproduce.runner import REPO, Runner
 from bench.spec import SCENARIO_DIR, SpecError
 
 PAPERS_DIR = SCENARIO_DIR / "papers"

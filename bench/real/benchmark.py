@@ -2,9 +2,9 @@
 
 Protocol (``run_real_benchmark``):
 
-1. Import the DRIVE table as per-window arrays (:func:`bench.drive.import_drive_windows`).  A window
+1. Import the DRIVE table as per-window arrays (:func:`bench.real.drive.import_drive_windows`).  A window
    is scored if its measured wheel speeds and its ICP start and end poses are finite.
-2. Split the command steps (the repaired step ids of :mod:`bench.drive`) into a calibration and a
+2. Split the command steps (the repaired step ids of :mod:`bench.real.drive`) into a calibration and a
    test half **by step**: a ``numpy.random.default_rng(seed)`` permutation of the step ids, the
    first ``ceil(n/2)`` steps calibrate, the others test.  All windows of a step go to its half.
 3. Fit every model on the calibration windows only (:meth:`WindowModel.fit`).
@@ -67,7 +67,7 @@ from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 from scipy.optimize import least_squares
 
-from bench.drive import DriveWindows, import_drive_windows, resolve_platform
+from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform
 from bench.kinematics import curvature_ratio, icr_forward, icr_inverse, ideal_dd, integrate_se2
 from bench.run import Run, from_arrays, wrap_angle
 
@@ -167,7 +167,7 @@ def window_chi(w: DriveWindows, wheel_radius: float, track: float, min_turn: flo
     return chi, lam, phi, usable
 
 
-TESTBED_CHI_SCENARIO = "real_husky_asphalt"  # the gap workflow's nominal husky model (bench.real_gap)
+TESTBED_CHI_SCENARIO = "real_husky_asphalt"  # the gap workflow's nominal husky model (bench.real.gap)
 
 
 def testbed_chi(platform_name: str, abs_ratios: Sequence[float], tread_speeds: Sequence[float],
@@ -929,7 +929,7 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
             f"[`{name}_errors.png`]({name}_errors.png) (error CDFs, steady and transitory), "
             f"[`{name}_examples.png`]({name}_examples.png) (six test windows at the 10-90 % quantiles of the "
             "ideal-DD error: ICP vs each model).\n")
-    add("## Data notes (measured while importing; see `bench/drive.py`)\n")
+    add("## Data notes (measured while importing; see `bench/real/drive.py`)\n")
     imp, ck = out["import"], out["checks"]
     shared = ", ".join(f"{n} share {k}" for k, n in sorted(imp["shared_sample_boundaries"].items()) if k > 0)
     add(f"- {imp['relabelled_windows']} transitory windows carry the previous step's `calib_step` label (their first "
@@ -1021,11 +1021,11 @@ def _reading(out: Mapping[str, Any]) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m bench.real [TABLE] [--out results/real] [--seed 0] [--platform husky]``."""
-    root = Path(__file__).resolve().parent.parent
+    """``python -m bench.real.benchmark [TABLE] [--out results/real] [--seed 0] [--platform husky]``."""
+    root = Path(__file__).resolve().parents[2]
     data_root = Path(os.environ.get("SKIDBENCH_DATA", root.parent / "shared" / "data"))
     default = data_root / "drive_husky" / "husky_windows.parquet"
-    ap = argparse.ArgumentParser(prog="python -m bench.real", description=main.__doc__)
+    ap = argparse.ArgumentParser(prog="python -m bench.real.benchmark", description=main.__doc__)
     ap.add_argument("table", type=Path, nargs="?", default=default)
     ap.add_argument("--out", type=Path, default=root / "results" / "real")
     ap.add_argument("--seed", type=int, default=0)

@@ -31,7 +31,7 @@ from scipy import stats
 from bench import registry
 from bench.metrics import Trajectory, position_rms
 from bench.report.io import atomic_write_text
-from bench.runner import Runner
+from bench.reproduce.runner import Runner
 from bench.spec import CommandSpec, Scenario, Segment, load_scenario
 
 LEAGUE_SCENARIOS = (
@@ -194,7 +194,7 @@ def league_markdown(cells: list[Cell], n_seeds: int) -> str:
     lines = [
         "# League table: position RMS against the testbed truth [m]", "",
         f"Mean and 95% bootstrap interval over {n_seeds} seeds per scenario; each method calibrated on a",
-        "separate calibration set of the scenario's platform and terrain (bench/league.py). Lower is better;",
+        "separate calibration set of the scenario's platform and terrain (bench/reproduce/league.py). Lower is better;",
         "the best mean per scenario is in bold. Empty cells: the method failed (see notes) or lacks sensors.", "",
         "| method | " + " | ".join(scen) + " |", "|---|" + "---|" * len(scen),
     ]

@@ -1,0 +1,1 @@
+"""Filter machinery shared by the papers: the UKF core and the NEES null distribution."""

@@ -1,0 +1,1 @@
+"""Robustness: injected sensor faults and the stress suite of the filters."""
