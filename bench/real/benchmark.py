@@ -62,109 +62,34 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
 
 from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform
-from bench.kinematics import curvature_ratio, icr_forward, icr_inverse, ideal_dd, integrate_se2
-from bench.run import Run, from_arrays, wrap_angle
+from bench.kinematics import curvature_ratio, icr_forward, icr_inverse, ideal_dd
+from bench.run import Run, from_arrays
+from bench.real.windows import (MIN_TURN, Pose, VelocityWindowModel, WindowModel, end_errors, end_residuals,  # noqa: F401
+                                fit_end_poses, integrate_windows, predict_from_velocities, tread_speeds,
+                                valid_windows, window_chi, window_twist)
 
-MIN_TURN = 0.2  # [rad] a steady window must turn this much for chi (eq. (25)) to be measured
 CHI_BINS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, math.inf)  # |curvature ratio| bin edges
 WANG_P3AT = (0.4728, 0.0538)  # Wang 2015 eq. (45): (a, b) for the Pioneer P3-AT on tile
 SUBSETS = ("all", "steady", "transitory")
 ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
 
-Pose = tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 # ------------------------------------------------------------------------------------------
 # integration and scoring primitives (vectorised over windows)
 # ------------------------------------------------------------------------------------------
-def integrate_windows(dt: float, vx: np.ndarray, vy: np.ndarray, wz: np.ndarray,
-                      x0: np.ndarray, y0: np.ndarray, yaw0: np.ndarray) -> Pose:
-    """Integrate body velocities (n_windows, n_samples) held over each ``dt`` from each window's
-    initial pose; returns x, y, yaw of shape (n_windows, n_samples).
-
-    All windows go through one call of :func:`bench.kinematics.integrate_se2`: they are laid end
-    to end, and each window's poses are re-expressed relative to its first one (an SE(2) relative
-    pose does not depend on where the chain put the window, nor on the link interval driven by the
-    previous window's last sample), then moved to the window's initial pose.
-    """
-    vx, vy, wz = (np.asarray(a, float) for a in (vx, vy, wz))
-    n, m = vx.shape
-    t = dt * np.arange(n * m)
-    x, y, yaw = integrate_se2(t, vx.ravel(), vy.ravel(), wz.ravel())
-    x, y, yaw = x.reshape(n, m), y.reshape(n, m), yaw.reshape(n, m)
-    dx, dy = x - x[:, :1], y - y[:, :1]
-    c0, s0 = np.cos(yaw[:, :1]), np.sin(yaw[:, :1])
-    xr, yr, yawr = c0 * dx + s0 * dy, -s0 * dx + c0 * dy, yaw - yaw[:, :1]
-    x0, y0, yaw0 = (np.asarray(a, float)[:, None] for a in (x0, y0, yaw0))
-    c, s = np.cos(yaw0), np.sin(yaw0)
-    return x0 + c * xr - s * yr, y0 + s * xr + c * yr, yaw0 + yawr
-
-
-def valid_windows(w: DriveWindows) -> np.ndarray:
-    """Windows whose wheel speeds (samples used by the integration) and ICP start/end pose are finite."""
-    ok = np.isfinite(w["enc_wl"][:, :-1]).all(axis=1) & np.isfinite(w["enc_wr"][:, :-1]).all(axis=1)
-    for c in ("ref_x", "ref_y", "ref_yaw"):
-        ok &= np.isfinite(w[c][:, 0]) & np.isfinite(w[c][:, -1])
-    return ok
-
-
-def predict_from_velocities(w: DriveWindows, vx: np.ndarray, vy: np.ndarray, wz: np.ndarray) -> Pose:
-    """Dead-reckon every window from its initial ICP pose with the given body velocities."""
-    return integrate_windows(w.dt, vx, vy, wz, w["ref_x"][:, 0], w["ref_y"][:, 0], w["ref_yaw"][:, 0])
-
-
-def end_errors(pred: Pose, w: DriveWindows) -> tuple[np.ndarray, np.ndarray]:
-    """Translation [m] and absolute yaw [rad] error at each window's last sample."""
-    x, y, yaw = pred
-    et = np.hypot(x[:, -1] - w["ref_x"][:, -1], y[:, -1] - w["ref_y"][:, -1])
-    ey = np.abs(np.asarray(wrap_angle(yaw[:, -1] - w["ref_yaw"][:, -1])))
-    return et, ey
-
-
-def end_residuals(pred: Pose, w: DriveWindows) -> np.ndarray:
-    """Mandow 2007 eq. (13) residuals (dx [m], dy [m], dphi [rad]) at each window's end, flattened."""
-    x, y, yaw = pred
-    return np.concatenate([
-        x[:, -1] - w["ref_x"][:, -1],
-        y[:, -1] - w["ref_y"][:, -1],
-        np.asarray(wrap_angle(yaw[:, -1] - w["ref_yaw"][:, -1])),
-    ])
-
-
 def stats(e: np.ndarray) -> dict[str, float]:
     e = np.asarray(e, float)
     if e.size == 0:
         return {"n": 0, "mean": math.nan, "median": math.nan, "p95": math.nan}
     return {"n": int(e.size), "mean": float(np.mean(e)), "median": float(np.median(e)),
             "p95": float(np.percentile(e, 95))}
-
-
-def tread_speeds(w: DriveWindows, wheel_radius: float) -> tuple[np.ndarray, np.ndarray]:
-    return wheel_radius * w["enc_wl"], wheel_radius * w["enc_wr"]
-
-
-def window_chi(w: DriveWindows, wheel_radius: float, track: float, min_turn: float = MIN_TURN
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Wang 2015 eq. (25)/(42) per window: ``chi = (S_r - S_l) / (phi B)``.
-
-    Returns (chi, curvature_ratio, phi, usable) with ``S_i = r sum_k w_i,k dt`` over the samples the
-    integration uses, ``phi`` the ICP yaw change from the first to the last sample, the curvature
-    ratio ``(S_l + S_r)/(S_r - S_l)``, and ``usable`` = steady, finite and ``|phi| >= min_turn``.
-    """
-    sl = wheel_radius * np.sum(w["enc_wl"][:, :-1], axis=1) * w.dt
-    sr = wheel_radius * np.sum(w["enc_wr"][:, :-1], axis=1) * w.dt
-    phi = w["ref_yaw"][:, -1] - w["ref_yaw"][:, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        chi = (sr - sl) / (phi * track)
-        lam = curvature_ratio(sl, sr)
-    usable = w.steady & np.isfinite(chi) & np.isfinite(lam) & (np.abs(phi) >= min_turn)
-    return chi, lam, phi, usable
 
 
 TESTBED_CHI_SCENARIO = "real_husky_asphalt"  # the gap workflow's nominal husky model (bench.real.gap)
@@ -202,44 +127,8 @@ def wang_chi(lam: np.ndarray, a: float, b: float) -> np.ndarray:
 # ------------------------------------------------------------------------------------------
 # models
 # ------------------------------------------------------------------------------------------
-@runtime_checkable
-class WindowModel(Protocol):
-    """What the real benchmark scores: fit on calibration windows, predict every window's poses."""
-
-    name: str
-    label: str
-
-    def fit(self, calib: DriveWindows) -> "WindowModel": ...
-
-    def predict(self, windows: DriveWindows) -> Pose: ...
-
-    def params(self) -> dict[str, float]: ...
-
-
-class _Kinematic:
-    """Shared predict for models defined by body velocities from the measured wheel speeds."""
-
-    def velocities(self, w: DriveWindows) -> Pose:  # pragma: no cover - abstract
-        raise NotImplementedError
-
-    def predict(self, windows: DriveWindows) -> Pose:
-        return predict_from_velocities(windows, *self.velocities(windows))
-
-
-def _fit_end_poses(model: Any, names: Sequence[str], x0: Sequence[float],
-                   bounds: tuple[Sequence[float], Sequence[float]], calib: DriveWindows) -> Any:
-    """least_squares on Mandow's J (eq. (13)) over the calibration windows."""
-
-    def resid(p: np.ndarray) -> np.ndarray:
-        return end_residuals(dataclasses.replace(model, **dict(zip(names, map(float, p)))).predict(calib), calib)
-
-    sol = least_squares(resid, np.asarray(x0, float), bounds=bounds, x_scale="jac", method="trf")
-    return dataclasses.replace(model, **dict(zip(names, map(float, sol.x))),
-                               fit_cost=float(2 * sol.cost / max(calib.n_windows, 1)))
-
-
 @dataclass(frozen=True)
-class IdealDD(_Kinematic):
+class IdealDD(VelocityWindowModel):
     """Ideal differential drive with the nominal track and wheel radius (nothing to fit)."""
 
     wheel_radius: float
@@ -259,7 +148,7 @@ class IdealDD(_Kinematic):
 
 
 @dataclass(frozen=True)
-class SymmetricChi(_Kinematic):
+class SymmetricChi(VelocityWindowModel):
     """Symmetric ICR model with constant chi (Wang eqs. (11), (15)); chi fitted on end poses."""
 
     wheel_radius: float
@@ -270,7 +159,7 @@ class SymmetricChi(_Kinematic):
     fit_cost: float = math.nan
 
     def fit(self, calib: DriveWindows) -> "SymmetricChi":
-        return _fit_end_poses(self, ["chi"], [1.5], ([0.5], [10.0]), calib)
+        return fit_end_poses(self, ["chi"], [1.5], ([0.5], [10.0]), calib)
 
     def velocities(self, w: DriveWindows) -> Pose:
         half = self.chi * self.track / 2.0
@@ -281,7 +170,7 @@ class SymmetricChi(_Kinematic):
 
 
 @dataclass(frozen=True)
-class AsymmetricICR(_Kinematic):
+class AsymmetricICR(VelocityWindowModel):
     """Mandow 2007 eqs. (6)-(7) in skidbench axes (module docstring); fitted on end poses."""
 
     wheel_radius: float
@@ -302,7 +191,7 @@ class AsymmetricICR(_Kinematic):
         names = ["y_l", "y_r", "x_icr", "alpha_l", "alpha_r"]
         lo = [0.05, -5.0, -2.0, 0.3, 0.3]
         hi = [5.0, -0.05, 2.0, 3.0, 3.0]
-        return _fit_end_poses(self, names, [half, -half, 0.0, 1.0, 1.0], (lo, hi), calib)
+        return fit_end_poses(self, names, [half, -half, 0.0, 1.0, 1.0], (lo, hi), calib)
 
     def velocities(self, w: DriveWindows) -> Pose:
         v_l, v_r = tread_speeds(w, self.wheel_radius)
@@ -314,7 +203,7 @@ class AsymmetricICR(_Kinematic):
 
 
 @dataclass(frozen=True)
-class WangChiCurve(_Kinematic):
+class WangChiCurve(VelocityWindowModel):
     """Wang 2015 eq. (44) chi(curvature ratio) in the symmetric model (eq. (47), corrected)."""
 
     wheel_radius: float
@@ -348,23 +237,6 @@ class WangChiCurve(_Kinematic):
         return {"a": self.a, "b": self.b, "chi(0)": 1.0 + self.a}
 
 
-def window_twist(w: DriveWindows) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Constant body twist (u, v, phi) that carries each window's first ICP pose to its last one
-    (SE(2) logarithm of the relative end pose): ``u, v`` [m] forward/left displacement along the
-    arc, ``phi`` [rad] the yaw change; divided by the duration they are ``v_Gx, v_Gy, psi_dot``."""
-    x, y, h = (w[c] for c in ("ref_x", "ref_y", "ref_yaw"))
-    dx, dy = x[:, -1] - x[:, 0], y[:, -1] - y[:, 0]
-    c0, s0 = np.cos(h[:, 0]), np.sin(h[:, 0])
-    bx, by = c0 * dx + s0 * dy, -s0 * dx + c0 * dy
-    phi = h[:, -1] - h[:, 0]
-    small = np.abs(phi) < 1e-9
-    ph = np.where(small, 1.0, phi)
-    a = np.where(small, 1.0, np.sin(ph) / ph)
-    b = np.where(small, 0.0, (1.0 - np.cos(ph)) / ph)
-    det = a * a + b * b
-    return (a * bx + b * by) / det, (-b * bx + a * by) / det, phi
-
-
 def yi_s_points(w: DriveWindows, track: float, min_turn: float = MIN_TURN
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Yi 2009 Sec. V-B data points (gamma, S [m]) per window, from the reference (as Yi does with
@@ -394,7 +266,7 @@ MIN_S_POINTS_PER_DIRECTION = 10  # S(gamma) points per travel direction needed t
 
 
 @dataclass(frozen=True)
-class YiSGamma(_Kinematic):
+class YiSGamma(VelocityWindowModel):
     """Yi 2009 kinematics (Sec. III-A, III-C, V-B) as a window model (Yi's EKF itself cannot run on
     DRIVE data: it needs the roll and pitch gyro rates, absent there; see :data:`YI_MISSING`).
 
@@ -481,10 +353,10 @@ class YiSGamma(_Kinematic):
     def fit(self, calib: DriveWindows) -> "YiSGamma":
         m = self._s_fit(calib)
         if self.yaw_rate == "gyro":
-            return _fit_end_poses(m, ["slip"], [0.0], ([-0.9], [0.9]), calib)
+            return fit_end_poses(m, ["slip"], [0.0], ([-0.9], [0.9]), calib)
         chi0 = SymmetricChi(self.wheel_radius, self.track).fit(calib).chi
         half = chi0 * self.track / 2.0
-        return _fit_end_poses(m, ["slip", "y_l", "y_r"], [0.0, half, -half],
+        return fit_end_poses(m, ["slip", "y_l", "y_r"], [0.0, half, -half],
                               ([-0.9, 0.05, -5.0], [0.9, 5.0, -0.05]), calib)
 
     def velocities(self, w: DriveWindows) -> Pose:
