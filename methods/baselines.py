@@ -2,7 +2,8 @@
 
 ``baseline.ideal_dd`` integrates the encoder wheel speeds with the no-slip differential-drive model
 (tread ICRs on the wheel centre lines, ``y_l = B/2``, ``y_r = -B/2``, ``x_icr = 0``): the yardstick
-every skid-steer model of the suite must beat.
+every skid-steer model of the suite must beat.  On real DRIVE windows it is the row ``ideal_dd`` of the
+real-data benchmark (:meth:`IdealDD.window_models`, :class:`IdealDDWindowModel`).
 
 Shared helpers (public, reused by :mod:`methods.mandow2007` and :mod:`methods.wang2015`):
 
@@ -20,6 +21,7 @@ of encoder sample ``k`` is held over ``[t_k, t_{k+1})`` (the zero-order hold of
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
@@ -27,11 +29,14 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from bench.kinematics import ideal_dd, integrate_se2
+from bench.real.drive import DriveWindows
+from bench.real.windows import Pose, VelocityWindowModel, tread_speeds
 from bench.registry import Estimate, make_estimate
 from bench.run import Run, RunError
 
 __all__ = [
     "IdealDD",
+    "IdealDDWindowModel",
     "dead_reckon",
     "encoder_speeds",
     "has_reference",
@@ -180,3 +185,27 @@ class IdealDD:
             t=t, x=x, y=y, yaw=yaw, vx=vx, vy=vy, wz=wz,
             y_l=np.full(n, track / 2), y_r=np.full(n, -track / 2), x_icr=np.zeros(n), chi=np.ones(n),
         )
+
+    def window_models(self, wheel_radius: float, track: float) -> list["IdealDDWindowModel"]:
+        """The real-data benchmark's row ``ideal_dd`` (:mod:`bench.real.windows` protocol)."""
+        return [IdealDDWindowModel(wheel_radius, track)]
+
+
+@dataclass(frozen=True)
+class IdealDDWindowModel(VelocityWindowModel):
+    """Ideal differential drive with the nominal track and wheel radius (nothing to fit)."""
+
+    wheel_radius: float
+    track: float
+    name: str = "ideal_dd"
+    label: str = "ideal differential drive, nominal B"
+    fit_cost: float = math.nan
+
+    def fit(self, calib: DriveWindows) -> "IdealDDWindowModel":
+        return self
+
+    def velocities(self, w: DriveWindows) -> Pose:
+        return ideal_dd(*tread_speeds(w, self.wheel_radius), self.track)
+
+    def params(self) -> dict[str, float]:
+        return {"B": self.track, "r": self.wheel_radius}

@@ -8,7 +8,7 @@ from scipy import stats
 from bench.estimation.consistency import Linearisation, NullNees, null_nees, simulate_nees, truncated_sum
 from methods.yi2009 import (PUBLISHED_S_GAMMA, EkfParams, GaussMarkov, align_inputs, initial_state, run_filter_gm,
                            shared_initial_states)
-from tests.test_yi2009 import R_WHEEL, TRACK, synthetic_run
+from tests.methods.yi2009.synthetic import R_WHEEL, TRACK, synthetic_run
 
 
 def _random_walk(n: int, q: float, p0: float, dof: int) -> Linearisation:

@@ -394,7 +394,7 @@ def test_history_written_by_reproduce_renders(tmp_path, monkeypatch):
     papers = tmp_path / "papers"
     papers.mkdir()
     (papers / "fake.toml").write_text(PAPER)
-    monkeypatch.setattr(R, "PAPERS_DIR", papers)
+    monkeypatch.setattr("bench.reproduce.paper.PAPERS_DIR", papers)  # where load_paper looks it up
     res = tmp_path / "results"
     R.reproduce(["fake"], results_dir=res, log=lambda s: None)
     monkeypatch.setenv("SKIDBENCH_BREAK_METHOD", "1")

@@ -13,16 +13,36 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from bench import registry
 from bench.real.drive import DRIVE_DT, DriveWindows, import_drive_windows
 from bench.kinematics import integrate_se2
+from bench.real.adapter import PluginModel
 from bench.real.benchmark import (
-    ICR_FAMILY, AsymmetricICR, IdealDD, PluginModel, SymmetricChi, WangChiCurve, YiSGamma, end_errors,
-    integrate_windows, run_real_benchmark, split_steps, wang_chi, window_chi, yi_s_points,
+    DEFAULT_METHODS, ICR_FAMILY, NoWindowModels, resolve_models, run_real_benchmark, split_steps,
 )
+from bench.real.windows import end_errors, integrate_windows, window_chi
+from bench.real.chi import model_chi
 from bench.registry import make_estimate
+from methods.wang2015.windows import wang_chi
+from methods.yi2009.windows import yi_s_points
 from tests.test_drive import HUSKY, N, husky_df, husky_slice, raw  # noqa: F401  (fixtures)
 
 R, B = 0.165, 0.55
+
+
+def row_class(method: str, row: str) -> type:
+    """The class of the window model that the registered plugin ``method`` offers for the benchmark row
+    ``row`` (the models live in the paper packages; the benchmark takes them from the registry)."""
+    (model,) = [m for m in registry.get(method).window_models(R, B) if m.name == row]
+    return type(model)
+
+
+IdealDD = row_class("baseline.ideal_dd", "ideal_dd")
+SymmetricChi = row_class("wang2015.constant_chi", "icr_sym_chi")
+AsymmetricICR = row_class("mandow2007.asymmetric_ga", "mandow2007_icr")
+WangChiCurve = row_class("wang2015.chi_lambda", "wang2015_chi_curve")
+YiSGamma = row_class("yi2009.ekf_v3", "yi2009_s_gamma")
+ROWS = ["ideal_dd", "icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve", "yi2009_s_gamma", "yi2009_s_gamma_gyro"]
 
 
 # ------------------------------------------------------------------------------------------
@@ -365,7 +385,7 @@ def test_testbed_chi_of_the_husky_model_matches_the_closed_form_at_pure_rotation
     model near pure rotation (the J-H patch law stays within a few %); NaN for another platform."""
     import math
 
-    from bench.real.benchmark import testbed_chi
+    from bench.real.chi import testbed_chi
     from bench.spec import load_platform
 
     h = load_platform("husky")
@@ -392,3 +412,52 @@ def test_yi_s_gamma_reverses_with_travel_direction_and_fits_x_m() -> None:
     back = vx[:, 0] < 0
     s_fwd = 0.004 / (0.05 * np.abs(-B * wz[:, 0] / (2 * vx[:, 0])) + 0.039)
     np.testing.assert_allclose(vy[:, 0], np.where(back, 0.08 + s_fwd, 0.08 - s_fwd) * wz[:, 0], atol=1e-12)
+
+
+# ------------------------------------------------------------------------------------------
+# the models come from the registry's plugins
+# ------------------------------------------------------------------------------------------
+def test_default_models_are_the_registry_plugins_window_models() -> None:
+    """Rows and order of the benchmark's default models = the window models of the plugins named in
+    DEFAULT_METHODS, taken from bench.registry (classes of the paper packages, none of bench)."""
+    assert DEFAULT_METHODS == ("baseline.ideal_dd", "wang2015.constant_chi", "mandow2007.asymmetric_ga",
+                               "wang2015.chi_lambda", "yi2009.ekf_v3")
+    models = resolve_models(None, R, B)
+    expected = [m for name in DEFAULT_METHODS for m in registry.get(name).window_models(R, B)]
+    assert [m.name for m in models] == ROWS
+    assert [(type(m), repr(m)) for m in models] == [(type(m), repr(m)) for m in expected]
+    assert all(type(m).__module__.startswith("methods.") for m in models)
+    # names and WindowModel objects mix, in the order given
+    mixed = resolve_models(["wang2015.chi_lambda", IdealDD(R, B), "baseline.ideal_dd"], R, B)
+    assert [m.name for m in mixed] == ["wang2015_chi_curve", "ideal_dd", "ideal_dd"]
+
+
+def test_plugin_without_window_models_is_named(monkeypatch: pytest.MonkeyPatch) -> None:
+    class RunsOnly:
+        name = "test.runs_only"
+
+    real_get = registry.get
+    monkeypatch.setattr(registry, "get", lambda n, **kw: RunsOnly() if n == "test.runs_only" else real_get(n, **kw))
+    with pytest.raises(NoWindowModels) as err:
+        resolve_models(["baseline.ideal_dd", "test.runs_only"], R, B)
+    msg = str(err.value)
+    assert "'test.runs_only'" in msg and "window_models" in msg and "\n" not in msg
+
+
+def test_benchmark_takes_plugin_names(husky_slice: Path, tmp_path: Path) -> None:
+    res = run_real_benchmark(husky_slice, tmp_path, models=["baseline.ideal_dd", "wang2015.constant_chi"],
+                             figures=False)
+    assert list(res["models"]) == ["ideal_dd", "icr_sym_chi"]
+    again = run_real_benchmark(husky_slice, tmp_path / "b", models=[IdealDD(R, B), SymmetricChi(R, B)],
+                               figures=False)
+    assert repr(res["models"]) == repr(again["models"])
+
+
+def test_model_chi_is_the_models_own_chi() -> None:
+    """The figure's chi of a fitted model (eq. (25) on its own prediction) equals its chi: Wang's curve
+    (eq. (44)) at each curvature ratio, the constant chi, and 1 for ideal differential drive."""
+    lam = np.array([0.0, 0.5, 3.0, 9.0, 40.0])
+    np.testing.assert_allclose(model_chi(WangChiCurve(R, B, a=0.9, b=0.2), lam, R, B), wang_chi(lam, 0.9, 0.2),
+                               rtol=1e-12)
+    np.testing.assert_allclose(model_chi(SymmetricChi(R, B, chi=2.3), lam, R, B), 2.3, rtol=1e-12)
+    np.testing.assert_allclose(model_chi(IdealDD(R, B), lam, R, B), 1.0, rtol=1e-12)

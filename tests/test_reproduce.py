@@ -10,7 +10,7 @@ import textwrap
 import pytest
 
 from bench import reproduce as R
-from bench.cli.more import compare_metrics
+from bench.cli.reproduce import compare_metrics
 from bench.report.io import dumps_json
 from bench.reproduce.runner import Runner
 from bench.spec import SpecError
@@ -58,7 +58,7 @@ def paper_dir(tmp_path, monkeypatch):
     d = tmp_path / "papers"
     d.mkdir()
     (d / "fake.toml").write_text(PAPER)
-    monkeypatch.setattr(R, "PAPERS_DIR", d)
+    monkeypatch.setattr("bench.reproduce.paper.PAPERS_DIR", d)  # where load_paper and list_papers look it up
     return d
 
 
@@ -106,7 +106,7 @@ def test_paired_margin_is_two_standard_errors_of_the_mean_difference():
     10 %; MA(1) differences e_k - e_(k-1) (adjacent segments sharing a reference sample) have a sum that
     telescopes, so the batch-means margin is far below the iid formula's 2 sqrt(2) / sqrt(n)."""
     import numpy as np
-    from methods.mandow2007_repro import paired_margin
+    from methods.mandow2007.repro import paired_margin
 
     rng = np.random.default_rng(5)
     n = 20_000
@@ -253,7 +253,7 @@ def test_extra_is_kept_only_while_the_results_folder_holds_its_output(tmp_path, 
     marker of the earlier format without the record recomputes it; an unchanged folder keeps it."""
     import argparse
 
-    import bench.cli.more as C
+    import bench.cli.reproduce as C
     import bench.reproduce.runner
 
     monkeypatch.setattr(bench.reproduce.runner, "DEFAULT_CACHE", tmp_path / "cache" / "runs")

@@ -55,7 +55,7 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
         Run.from_parquet(p)  # every cached run is whole
     # the next reproduce removes such temp files before it starts
     import bench.reproduce.runner as runner_mod
-    from bench.cli.more import _remove_stale_temp_files
+    from bench.cli.reproduce import _remove_stale_temp_files
 
     (cache / ".stale.parquet.abc123.tmp").write_bytes(b"half a parquet")
     saved = runner_mod.DEFAULT_CACHE

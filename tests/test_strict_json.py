@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bench.cli.more import compare_metrics
+from bench.cli.reproduce import compare_metrics
 from bench.report.io import dumps_json, json_number, json_safe
 from bench.sim import scenario_hash
 from bench.spec import Scenario, build, load_scenario, replace, to_dict

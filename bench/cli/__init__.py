@@ -7,16 +7,19 @@
     skidbench reproduce [PAPER ...] [--all] [--quick] [--workers N] [--dask-scheduler ADDR]
 
 Errors in inputs (spec files, logs) are printed as one line naming file, field and value, exit 2.
+
+This module is the entry point (the parser, :data:`COMMANDS`, :func:`main` and its error handling); each command
+group registers itself from its own module: :mod:`bench.cli.simulate` (list, simulate, validate-testbed,
+estimate), :mod:`bench.cli.reproduce` (reproduce, compare, the extras and their result cache; the real-data extra
+in :mod:`bench.cli.real`), :mod:`bench.cli.formats` (import-drive, export-tum, import-csv, import-bag),
+:mod:`bench.cli.verify` (verify-runs), :mod:`bench.cli.dashboard`, :mod:`bench.cli.gap`.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from bench.report.io import dumps_json
 from bench.run import RunError
 from bench.spec import SpecError
 
@@ -43,128 +46,6 @@ def parse_sets(items: Sequence[str] | None) -> dict[str, Any]:
     return dict(parse_override(s) for s in (items or ()))
 
 
-# ------------------------------------------------------------------------------------------ list
-def _list_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--json", action="store_true")
-
-
-def _list(a: argparse.Namespace) -> int:
-    from bench import registry
-    from bench.spec import SCENARIO_DIR, list_scenarios
-
-    methods = []
-    for name, ep in registry.discover().items():
-        try:
-            m = ep.load()()
-            methods.append({"name": name, "paper": getattr(m, "paper", ""), "requires": sorted(m.requires)})
-        except Exception as exc:  # a broken third-party plugin must not hide the others
-            methods.append({"name": name, "paper": f"(failed to load: {exc})", "requires": []})
-    out = {
-        "scenarios": list_scenarios(),
-        "platforms": sorted(p.stem for p in (SCENARIO_DIR / "platforms").glob("*.toml")),
-        "terrains": sorted(p.stem for p in (SCENARIO_DIR / "terrains").glob("*.toml")),
-        "methods": methods,
-    }
-    if a.json:
-        print(dumps_json(out, indent=2))
-        return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    con = Console()
-    for key in ("scenarios", "platforms", "terrains"):
-        con.print(f"[bold]{key}[/bold]: " + ", ".join(out[key]))
-    tab = Table("method", "paper", "requires")
-    for m in methods:
-        tab.add_row(m["name"], m["paper"], ", ".join(m["requires"]))
-    con.print(tab)
-    return 0
-
-
-command("list", "scenarios, platforms, terrains and registered methods")((_list_args, _list))
-
-
-# ------------------------------------------------------------------------------------------ simulate
-def _sim_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenario", help="scenario name (scenarios/<name>.toml) or path")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--set", dest="sets", action="append", metavar="KEY=VALUE",
-                   help="override any spec field, e.g. --set terrain.mu_sa=0.5")
-    p.add_argument("-o", "--output", required=True, type=Path)
-
-
-def _simulate(a: argparse.Namespace) -> int:
-    from bench.sim import simulate
-    from bench.spec import load_scenario
-
-    scn = load_scenario(a.scenario, parse_sets(a.sets))
-    with _progress() as prog:
-        task = prog.add_task(f"simulate {scn.id} seed {a.seed}", total=1.0)
-        run = simulate(scn, a.seed, progress=lambda f: prog.update(task, completed=f))
-    run.to_parquet(a.output)
-    print(f"wrote {a.output} ({len(run.data)} rows, hash {run.content_hash()[:12]})")
-    return 0
-
-
-command("simulate", "simulate a scenario with a seed into a Parquet run log")((_sim_args, _simulate))
-
-
-# ------------------------------------------------------------------------------------------ validate
-def _val_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--json", action="store_true", help="print the checks as JSON")
-    p.add_argument("--quick", action="store_true", help="fewer speeds in the chi grid")
-
-
-def _validate(a: argparse.Namespace) -> int:
-    from dataclasses import asdict
-
-    from bench.sim.validate import run_checks
-
-    log = (lambda s: print(s, file=sys.stderr)) if not a.json else (lambda s: None)
-    checks = run_checks(progress=log, quick=a.quick)
-    if a.json:
-        print(dumps_json({"passed": all(c.passed for c in checks), "checks": [asdict(c) for c in checks]}, indent=1))
-    else:
-        from rich.console import Console
-        from rich.table import Table
-
-        tab = Table("check", "result", "measured", "expected", "source")
-        for c in checks:
-            meas = c.measured if not isinstance(c.measured, (dict, list)) else json.dumps(c.measured)[:60] + "..."
-            tab.add_row(c.name, "[green]pass[/green]" if c.passed else "[red]FAIL[/red]", str(meas), c.expected, c.source)
-        Console().print(tab)
-    return 0 if all(c.passed for c in checks) else 1
-
-
-command("validate-testbed", "physics checks of the testbed against the papers")((_val_args, _validate))
-
-
-# ------------------------------------------------------------------------------------------ estimate
-def _est_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("method")
-    p.add_argument("run", type=Path)
-    p.add_argument("--calibrate", nargs="*", type=Path, default=[], help="calibration runs (never the scored run)")
-    p.add_argument("-o", "--output", required=True, type=Path)
-
-
-def _estimate(a: argparse.Namespace) -> int:
-    from bench import registry
-    from bench.report.io import atomic_write_text
-    from bench.run import Run
-
-    method = registry.get(a.method)
-    if a.calibrate:
-        method = registry.calibrate(method, [Run.from_parquet(p).validate() for p in a.calibrate])
-    run = Run.from_parquet(a.run).validate()
-    est = registry.estimate(method, run)
-    atomic_write_text(a.output, est.data.to_csv(index=False))
-    print(f"wrote {a.output} ({len(est.data)} rows)")
-    return 0
-
-
-command("estimate", "run a method on a run log")((_est_args, _estimate))
-
-
 def build_parser() -> argparse.ArgumentParser:
     _load_optional_commands()
     ap = argparse.ArgumentParser(prog="skidbench", description=__doc__.split("\n")[0])
@@ -179,7 +60,8 @@ def _load_optional_commands() -> None:
     """Commands defined next to their feature (reproduce, gap, formats, ...) register themselves."""
     import importlib
 
-    for mod in ("bench.cli.more", "bench.cli.dashboard", "bench.cli.gap"):
+    for mod in ("bench.cli.simulate", "bench.cli.reproduce", "bench.cli.formats", "bench.cli.verify",
+                "bench.cli.dashboard", "bench.cli.gap"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:
@@ -201,7 +83,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    # run through the imported module so that commands registered by bench.cli.more land in the
+    # run through the imported module so that commands registered by bench.cli.<group> land in the
     # same COMMANDS table (``python -m bench.cli`` would otherwise have two copies of this module)
     from bench.cli import main as _main
 

@@ -26,7 +26,7 @@ Filter hygiene (DESIGN.md, "Filter hygiene"):
 * optional per-element Mahalanobis gating (``gate`` in standard deviations, off by default).
 
 Relation to FilterPy's ``UnscentedKalmanFilter`` + ``MerweScaledSigmaPoints`` (checked side by side
-to 1e-9 in ``tests/test_ukf.py`` and ``tests/test_liu2020.py``): same sigma points, weights, means,
+to 1e-9 in ``tests/test_ukf.py`` and ``tests/methods/liu2020/test_ukf.py``): same sigma points, weights, means,
 gain.  Like FilterPy, the update draws fresh sigma points from the predicted ``(x, P)`` (so the
 additive Q of eq. (20) enters the cross covariance) where Liu eq. (21) writes the propagated points
 ``x_{k+1|k}(i)``.  With ``joseph=False`` the covariance update is FilterPy's (and Liu eq. (24)'s)

@@ -4,8 +4,8 @@ Husky data: the first real-world test of the workflow (issue 9).
 Protocol (:func:`run_real_gap`):
 
 1. Import the DRIVE table as windows (:func:`bench.real.drive.import_drive_windows`), drop the windows the
-   real benchmark drops (:func:`bench.real.valid_windows`) and split the command steps into the real
-   benchmark's calibration and test halves (:func:`bench.real.split_steps`, same seed): the gap
+   real benchmark drops (:func:`bench.real.windows.valid_windows`) and split the command steps into the
+   real benchmark's calibration and test halves (:func:`bench.real.benchmark.split_steps`, same seed): the gap
    workflow fits on calibration steps only and is scored on test steps only.
 2. **Fit block**: the first ``n_fit`` consecutive calibration steps (table order) that follow each
    other in time, concatenated into one Run (:func:`block_run`; windows chained as ``import-drive``
@@ -20,9 +20,10 @@ Protocol (:func:`run_real_gap`):
    from its own measured initial state) is simulated with the nominal model and with the model the
    workflow ended with (named effects, or the partial candidates when it named nothing), and the
    residuals measured - model are pooled over those steps per channel (RMS [SI], normalised RMS)
-   and per driving regime (:func:`score_held_out`).  Nothing from the test steps enters the fit.
+   and per driving regime (:func:`bench.real.held_out.score_held_out`).  Nothing from the test steps enters the fit.
 
-Outputs (atomic writes, no wall-clock value, so the same input gives the same bytes):
+Outputs (:mod:`bench.real.gap_report`; atomic writes, no wall-clock value, so the same input gives the
+same bytes):
 ``<out>/husky_gap.md``, ``husky_gap.json`` and ``husky_gap.png``.
 
 Bounded run (``make reproduce`` / ``skidbench reproduce real``): :data:`BOUNDED` (2 fit steps =
@@ -39,7 +40,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import math
 import os
 import time
 from dataclasses import dataclass
@@ -49,21 +49,19 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform, windows_to_runs
-from bench.gap import GapResult, Thresholds, find_gap
-from bench.gap.catalogue import CATALOGUE, Effect, ModelConfig, get, nominal_config
-from bench.gap.report import STDERR_NOTE, uncertainty_text
-from bench.gap.fit import Evaluator
-from bench.gap.model import measured_grid, replay_scenario, testbed_trace
-from bench.gap.regimes import regimes_for
-from bench.gap.residuals import CHANNELS, CUMULATIVE_CHANNELS, UNITS, build_space
-from bench.real.benchmark import _atomic_write_text, _new_figure, _save_figure, split_steps, valid_windows
+from bench.gap import Thresholds, find_gap
+from bench.gap.catalogue import CATALOGUE, Effect
+from bench.real.benchmark import split_steps
+from bench.real.gap_report import _figure, _markdown
+from bench.real.held_out import score_held_out, step_residuals, wheel_series
+from bench.real.io import _atomic_write_text
+from bench.real.windows import valid_windows
 from bench.report.io import dumps_json
 from bench.run import Run
 from bench.spec import load_scenario
 
 SCENARIO = "real_husky_asphalt"
 CONTINUITY = 0.5  # [rad/s] max wheel-speed jump across a step boundary for "consecutive in time"
-MIN_REGIME_SHARE = 0.05  # a regime must hold this share of the held-out samples to be "where"
 
 
 @dataclass(frozen=True)
@@ -128,119 +126,6 @@ def block_run(w: DriveWindows, steps: Sequence[int], platform: Mapping[str, Any]
     run.meta["calib_steps"] = [int(s) for s in steps]
     return run
 
-
-# ------------------------------------------------------------------------------------------
-# held-out scoring
-# ------------------------------------------------------------------------------------------
-def final_config(res: GapResult, scn: Any) -> ModelConfig:
-    """The model the workflow ended with, for a (replayed) scenario ``scn``: the nominal
-    configuration plus every effect it kept (named, or partial candidates), at the fitted values."""
-    cfg = nominal_config(scn)
-    for e in res.effects + res.partial:
-        eff = get(e["name"])
-        cfg = eff.apply(scn, cfg, tuple(float(e["parameters"][p.name]) for p in eff.params))
-    return cfg
-
-
-def step_residuals(run: Run, scenario: Any, res: GapResult) -> dict[str, Any]:
-    """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
-    noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
-    alignment as inside the workflow)."""
-    run = run.without_truth()
-    rscn, init = replay_scenario(run, scenario)
-    space = build_space(run, regimes_for(scenario.platform))
-    grid = measured_grid(run, space.t, init, scenario)
-    ev = Evaluator(rscn, grid, space, testbed_trace, workers=1)
-    out: dict[str, Any] = {"space": space, "cost": {}, "raw": {}}
-    for key, cfg in (("before", nominal_config(rscn)), ("after", final_config(res, rscn))):
-        sig = ev.signals(cfg)
-        out["raw"][key] = space.raw(sig)
-        out["cost"][key] = space.cost(sig)
-    out["j_noise"] = space.j_noise
-    return out
-
-
-def wheel_series(run: Run, scenario: Any, res: GapResult) -> dict[str, dict[str, np.ndarray]]:
-    """For the figure: commanded, measured, nominal-model and final-model wheel speeds of ``run``."""
-    r = step_residuals(run, scenario, res)
-    sp = r["space"]
-    out = {}
-    for c, cmd in (("enc_wl", "cmd_wl"), ("enc_wr", "cmd_wr")):
-        if c not in sp.channels:
-            continue
-        t = sp.t[c]
-        out[c] = {"t": t, "measured": sp.meas[c], "command": np.interp(t, run.t, run[cmd]),
-                  "nominal": sp.meas[c] - r["raw"]["before"][c], "final": sp.meas[c] - r["raw"]["after"][c]}
-    return out
-
-
-def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str]) -> dict[str, Any]:
-    """Pool per-step residuals: per channel RMS [SI] and normalised RMS before/after; per regime the
-    share of samples and the excess cost over the local channels (as bench.gap.residuals.regime_table,
-    pooled over steps: sum_c w_c max(mean (r/sigma)^2 - (sigma_hat/sigma)^2, 0))."""
-    chans = [c for c in CHANNELS if any(c in s["space"].channels for s in steps)]
-    per: dict[str, dict[str, float]] = {}
-    for c in chans:
-        row: dict[str, float] = {"unit": UNITS[c]}
-        for key in ("before", "after"):
-            r2, z2, n = 0.0, 0.0, 0
-            for s in steps:
-                if c not in s["space"].channels:
-                    continue
-                r = s["raw"][key][c]
-                ok = np.isfinite(r)
-                r2 += float(np.sum(r[ok] ** 2))
-                z2 += float(np.sum((r[ok] / s["space"].sigma[c]) ** 2))
-                n += int(ok.sum())
-            row[f"rms_{key}"] = math.sqrt(r2 / n) if n else math.nan
-            row[f"normalised_rms_{key}"] = math.sqrt(z2 / n) if n else math.nan
-            row["n"] = n
-        row["change_percent"] = (100.0 * (row["rms_after"] / row["rms_before"] - 1.0)
-                                 if row["rms_before"] > 0 else math.nan)
-        per[c] = row
-    regimes: dict[str, dict[str, Any]] = {}
-    total = sum(int(np.isfinite(s["raw"]["before"][c]).sum()) for s in steps for c in s["space"].channels)
-    for i, name in enumerate(regime_names):
-        entry: dict[str, Any] = {"n": 0}
-        for key in ("before", "after"):
-            excess, nrms, count = 0.0, {}, 0
-            for c in chans:
-                acc, n, noise = 0.0, 0, 0.0
-                for s in steps:
-                    sp = s["space"]
-                    if c not in sp.channels:
-                        continue
-                    m = (sp.regime[c] == i) & np.isfinite(s["raw"][key][c])
-                    z2 = (s["raw"][key][c][m] / sp.sigma[c]) ** 2
-                    acc += float(z2.sum())
-                    noise += float(m.sum()) * (sp.sigma_hat[c] / sp.sigma[c]) ** 2
-                    n += int(m.sum())
-                if n == 0:
-                    continue
-                count += n
-                nrms[c] = math.sqrt(acc / n)
-                if c not in CUMULATIVE_CHANNELS:
-                    excess += CHANNELS[c][1] * max(acc / n - noise / n, 0.0)
-            entry[f"excess_{key}"] = excess
-            entry[f"normalised_rms_{key}"] = nrms
-            entry["n"] = count
-        if entry["n"]:
-            entry["share"] = entry["n"] / total if total else 0.0
-            local = {c: v for c, v in entry["normalised_rms_after"].items() if c not in CUMULATIVE_CHANNELS}
-            entry["worst_channel_after"] = max(local, key=local.get) if local else ""
-            regimes[name] = entry
-    pool = {k: v for k, v in regimes.items() if v["share"] >= MIN_REGIME_SHARE} or regimes
-    worst = max(pool, key=lambda k: pool[k]["excess_after"]) if pool else None
-    cost_b = [s["cost"]["before"] for s in steps]
-    cost_a = [s["cost"]["after"] for s in steps]
-    jn = [s["j_noise"] for s in steps]
-    return {
-        "channels": per, "regimes": regimes, "worst_regime": worst,
-        "cost": {"before_mean": float(np.mean(cost_b)), "after_mean": float(np.mean(cost_a)),
-                 "j_noise_mean": float(np.mean(jn)),
-                 "steps_improved": int(sum(a < b for a, b in zip(cost_a, cost_b))), "n_steps": len(steps),
-                 "per_step": [{"before": b, "after": a, "j_noise": j} for b, a, j in zip(cost_b, cost_a, jn)]},
-    }
 
 
 def command_tracking(w: DriveWindows, wheel_radius: float, track: float) -> dict[str, float]:
@@ -328,200 +213,6 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     out["runtime_s"] = time.perf_counter() - t0
     return out
 
-
-# ------------------------------------------------------------------------------------------
-# report
-# ------------------------------------------------------------------------------------------
-def _g(x: Any, nd: int = 4) -> str:
-    if x is None or (isinstance(x, float) and not math.isfinite(x)):
-        return "n/a"
-    return f"{float(x):.{nd}g}"
-
-
-def _markdown(doc: Mapping[str, Any], figure: bool) -> str:
-    wf, ho = doc["workflow"], doc["held_out"]
-    L: list[str] = []
-    add = L.append
-    add(f"# Gap workflow against the real data: `{doc['platform']}` testbed model vs DRIVE Husky\n")
-    add("Generated by `bench.real.gap.run_real_gap` (`skidbench reproduce real`). The nominal testbed model "
-        f"(scenario `{doc['scenario']}`: platform `husky`, terrain `asphalt`; the data's README names no terrain) "
-        "replays the measured commanded wheel speeds from each run's measured initial state; `bench.gap` compares "
-        "its noise-free channels with the measured ones, screens and fits the effect catalogue and selects "
-        "effects by cross-validated cost.\n")
-    add("## Data\n")
-    add(f"- Fit block (calibration half of the real benchmark's split, seed {doc['seed']}): steps "
-        f"{', '.join(map(str, doc['fit_steps']))}, consecutive in time, one Run of {doc['fit_duration_s']:.2f} s.")
-    add(f"- Held out (test half; never seen by the fit): {len(doc['held_out_steps'])} steps "
-        f"({', '.join(map(str, doc['held_out_steps']))}), each replayed on its own.")
-    add(f"- Bounds of this run: {doc['bounds_text']}.")
-    add(f"- Channels compared: {', '.join(wf['gap_before'])}; not available in the DRIVE data: "
-        f"{', '.join(wf['channels_missing']) or '-'} (no motor torque or current is logged, so the motor "
-        "saturation candidate has no measured ceiling to screen).")
-    f = doc["data_facts"]
-    add(f"- Commanded wheel speeds reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s, measured ones never exceed "
-        f"{f['max_abs_enc_wheel_speed']:.2f} rad/s.\n")
-    add("## What the workflow names (fit block)\n")
-    add(f"**Verdict:** {wf['verdict']}\n")
-    c = wf["cost"]
-    add(f"Cost (weighted normalised mean square; sensor noise alone ~ {_g(c['j_noise'], 3)}): nominal "
-        f"{_g(c['nominal'])} -> final {_g(c['final'])} (its own 2-fold held-out {_g(c['final_cv'])}), explained "
-        f"fraction of the excess {100 * c['explained_fraction']:.1f} %; {wf['n_simulations']} simulations.\n")
-    for title, rows in (("Named effects", wf["effects"]),
-                        ("Partial candidates (helped, not named)", wf["partial_candidates"])):
-        if not rows:
-            continue
-        add(f"### {title}\n")
-        add("| effect | parameter | fitted | std. error | nominal | fold estimates |")
-        add("|---|---|---:|---:|---:|---|")
-        for e in rows:
-            for k, v in e["parameters"].items():
-                se = uncertainty_text(e["name"], k, v, e["uncertainty"].get(k))
-                add(f"| {e['name']} | {k} [{e['units'].get(k, '')}] | {_g(v, 5)} | {se} | "
-                    f"{_g(e['nominal'].get(k))} | {', '.join(_g(x) for x in e['fold_estimates'].get(k, []))} |")
-        add("")
-    if not wf["effects"] and not wf["partial_candidates"]:
-        add("No effect was kept.\n")
-    add(f"{STDERR_NOTE}\n")
-    for r in wf["candidates"]:
-        add(f"Round {r['round']} ({'accepted' if r['accepted'] else 'rejected'}: {r['reason']}); refined candidates:\n")
-        add("| model | cost | 2-fold held-out cost |")
-        add("|---|---:|---:|")
-        for fd in r["fits"]:
-            add(f"| {' + '.join(fd['effects'])} | {_g(fd['cost'])} | {_g(fd['cost_cv'])} |")
-        best = sorted(r["screening"], key=lambda x: x["predicted_cost"])[:3]
-        add("\nBest screening estimates: " + "; ".join(
-            f"{x['effect']} ({', '.join(_g(v) for v in x['estimate'])}) -> {_g(x['predicted_cost'])}"
-            for x in best) + ".\n")
-    add("### Gap per channel in the fit block (in-sample)\n")
-    add("| channel | unit | RMS before | RMS after | change | noise scale |")
-    add("|---|---|---:|---:|---:|---:|")
-    for ch, b in wf["gap_before"].items():
-        a = wf["gap_after"][ch]
-        chg = 100.0 * (a["rms"] / b["rms"] - 1.0) if b["rms"] > 0 else math.nan
-        add(f"| {ch} | {b['unit']} | {_g(b['rms'])} | {_g(a['rms'])} | {chg:+.0f} % | {_g(b['noise'], 2)} |")
-    add("")
-    add(f"## Held-out steps: gap before/after per channel ({ho['cost']['n_steps']} test steps, pooled)\n")
-    add("| channel | unit | RMS before | RMS after | change | normalised RMS before | normalised RMS after | samples |")
-    add("|---|---|---:|---:|---:|---:|---:|---:|")
-    for ch, r in ho["channels"].items():
-        add(f"| {ch} | {r['unit']} | {_g(r['rms_before'])} | {_g(r['rms_after'])} | {r['change_percent']:+.0f} % | "
-            f"{_g(r['normalised_rms_before'])} | {_g(r['normalised_rms_after'])} | {r['n']} |")
-    add("")
-    hc = ho["cost"]
-    add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])} -> final {_g(hc['after_mean'])} "
-        f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
-        f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
-    add("### Where the held-out residual sits\n")
-    add("Regimes from measured signals only (bench.gap.regimes; `climbing` = pitch from the accelerometer, "
-        "a_x - dv/dt, above 2 deg).\n")
-    add("| regime | share of samples | excess cost before | excess cost after | worst local channel after |")
-    add("|---|---:|---:|---:|---|")
-    for name, r in ho["regimes"].items():
-        add(f"| {name} | {100 * r['share']:.0f} % | {_g(r['excess_before'])} | {_g(r['excess_after'])} | "
-            f"{r['worst_channel_after']} |")
-    add("")
-    wr = ho["worst_regime"]
-    if wr:
-        r = ho["regimes"][wr]
-        ch = r["worst_channel_after"]
-        add(f"Largest held-out residual (excess cost per sample, regimes with >= {100 * MIN_REGIME_SHARE:.0f} % of the "
-            f"samples): **{wr}** ({_g(r['excess_after'])} after vs {_g(r['excess_before'])} before), worst channel "
-            f"{ch} (normalised RMS {_g(r['normalised_rms_after'].get(ch))}).\n")
-    add("## Reading\n")
-    L.extend(_reading(doc))
-    add("")
-    if figure:
-        add("![fit block: wheel speeds (logged command, measured, nominal and final model) and the channel the "
-            "final model improves most; held-out normalised RMS per channel](husky_gap.png)\n")
-    return "\n".join(L)
-
-
-def _reading(doc: Mapping[str, Any]) -> list[str]:
-    """Sentences derived from the numbers (none written by hand)."""
-    wf, ho = doc["workflow"], doc["held_out"]
-    out = []
-    kept = [e["name"] for e in wf["effects"] + wf["partial_candidates"]]
-    hc = ho["cost"]
-    if kept:
-        better = hc["after_mean"] < hc["before_mean"]
-        one = len(kept) == 1
-        verb = ("lowers" if one else "lower") if better else ("does not lower" if one else "do not lower")
-        out.append(f"- The fitted {'effect' if one else 'effects'} ({', '.join(kept)}) {verb} the mean held-out cost "
-                   f"({_g(hc['before_mean'])} -> {_g(hc['after_mean'])}); per channel: "
-                   + ", ".join(f"{c} {r['change_percent']:+.0f} %" for c, r in ho["channels"].items()) + ".")
-    else:
-        out.append("- The workflow kept no effect; the held-out gap is the nominal model's.")
-    left = hc["after_mean"] / hc["j_noise_mean"] if hc["j_noise_mean"] > 0 else math.nan
-    out.append(f"- After the workflow the held-out cost is {left:.0f} x what sensor noise alone would leave: "
-               + ("the residual stays large; " if left > 2 else "")
-               + f"the verdict on the fit block is \"{wf['verdict_kind'].replace('_', ' ')}\".")
-    f = doc["data_facts"]
-    if f["max_abs_cmd_wheel_speed"] > 1.2 * f["max_abs_enc_wheel_speed"]:
-        out.append(f"- The measured wheel speeds never exceed {f['max_abs_enc_wheel_speed']:.2f} rad/s while the commands "
-                   f"reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s.")
-    if "slope_sum" in f:
-        out.append(
-            f"- The wheels do not track the logged commands, which is what the replay assumes: on the "
-            f"{f['n_steady_windows']} steady windows the measured wheel-speed half-sum is {f['slope_sum']:.2f} x the "
-            f"commanded one and the measured difference {f['slope_difference']:.2f} x the commanded one "
-            "(least-squares slopes of window means)"
-            + (f"; the gyro never exceeds {f['max_abs_gyro_rate']:.2f} rad/s while the commands ask for up to "
-               f"{f['max_abs_cmd_yaw_rate_ideal']:.2f} rad/s (ideal differential drive)" if "max_abs_gyro_rate" in f
-               else "")
-            + ". The robot's own velocity controller sits between the logged command and the wheels; the "
-            "catalogue models it with command_map (gains on the commanded mean and half-difference) and "
-            "command_limit (clipping of both), added after the first run of this workflow on these data named "
-            "nothing (that diagnosis, these slopes, uses all steady windows, the test half included, so the held-out "
-            "improvement below is not fully independent of the held-out steps); "
-            + (f"kept here: {', '.join(k for k in kept if k.startswith('command_'))}."
-               if any(k.startswith("command_") for k in kept) else "neither was kept here.")
-            + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "
-            "tables.")
-    return out
-
-
-def _figure(res: GapResult, held_out: Mapping[str, Any], wheels: Mapping[str, Mapping[str, np.ndarray]],
-            path: Path) -> Path:
-    s = res.series
-    chans = list(s.get("channels", []))[:1]
-    n = len(wheels) + len(chans) + 1
-    fig = _new_figure(9.0, 2.3 * n)
-    for k, (c, d) in enumerate(wheels.items()):
-        ax = fig.add_subplot(n, 1, k + 1)
-        ax.plot(d["t"], d["command"], "--", lw=1.0, color="0.5", label="logged command (replayed)")
-        ax.plot(d["t"], d["measured"], ".", ms=2, color="k", label="measured")
-        ax.plot(d["t"], d["nominal"], "-", lw=1.0, color="C3", label="nominal model")
-        ax.plot(d["t"], d["final"], "-", lw=1.0, color="C0", label="final model")
-        ax.set_ylabel(f"{c} [rad/s]", fontsize=8)
-        ax.set_title(f"fit block: {c}", fontsize=9)
-        ax.tick_params(labelsize=7)
-        if k == 0:
-            ax.legend(fontsize=7, ncol=2)
-    for k, c in enumerate(chans):
-        ax = fig.add_subplot(n, 1, len(wheels) + k + 1)
-        t = np.asarray(s["t"][c])
-        ax.plot(t, s["measured"][c], ".", ms=2, color="k", label="measured")
-        ax.plot(t, s["before"][c], "-", lw=1.0, color="C3", label="nominal model")
-        ax.plot(t, s["after"][c], "-", lw=1.0, color="C0", label="final model")
-        ax.set_ylabel(f"{c} [{UNITS[c]}]", fontsize=8)
-        ax.set_title(f"fit block: {c}", fontsize=9)
-        ax.tick_params(labelsize=7)
-        if k == 0 and not wheels:
-            ax.legend(fontsize=7)
-    ax = fig.add_subplot(n, 1, n)
-    names = list(held_out["channels"])
-    x = np.arange(len(names))
-    b = [held_out["channels"][c]["normalised_rms_before"] for c in names]
-    a = [held_out["channels"][c]["normalised_rms_after"] for c in names]
-    ax.bar(x - 0.2, b, 0.4, color="C3", label="nominal")
-    ax.bar(x + 0.2, a, 0.4, color="C0", label="final")
-    ax.set_yscale("log")
-    ax.set_xticks(x, names, fontsize=8)
-    ax.set_ylabel("held-out RMS / noise scale", fontsize=8)
-    ax.legend(fontsize=7)
-    ax.set_title("held-out test steps", fontsize=9)
-    fig.tight_layout()
-    return _save_figure(fig, path)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -349,7 +349,7 @@ def stress_markdown(rows: Sequence[Mapping[str, Any]], s: StressSettings) -> str
         f"no GNSS); IMU spikes at t0 + {', '.join(f'{o:g}' for o in s.spike_offsets)} s, {s.spike_magnitude:g} x full "
         f"scale on all six channels, clipped at the saturation; encoder dropout {s.dropout:g} s.",
         f"* Liu `icr_hold`: `LiuUkfParams(icr_hold_gnss_timeout={s.gnss_timeout:g})`, the ICR held through the "
-        "outage at its least-squares fit over the last 20 s with GNSS (Liu Sec. IV-A; see methods/liu2020.py). "
+        "outage at its least-squares fit over the last 20 s with GNSS (Liu Sec. IV-A; see methods/liu2020/icr.py). "
         "`paper`: the ICR recomputed after every update, as written.",
         f"* Liu `consistent`: `methods.liu2020.UkfIcrConsistent` / `MiUkfConsistent` (no encoder pose pseudo-measurement, "
         f"GNSS bias states, noise identified on {s.calib_scenario} seed {s.calib_seed}; see results/liu2020/"
@@ -437,7 +437,7 @@ def stress_markdown(rows: Sequence[Mapping[str, Any]], s: StressSettings) -> str
 def stress_report(out_dir: str | Path, quick: bool = True, settings: StressSettings | None = None,
                   workers: int | None = None) -> Path:
     """Run the stress cases (:data:`QUICK` or :data:`FULL`) and write ``<out_dir>/stress.md``
-    atomically; returns its path.  Signature fits ``bench.cli.more.register_extra``."""
+    atomically; returns its path.  Signature fits ``bench.cli.reproduce.register_extra``."""
     from bench.report.io import atomic_write_text
 
     s = settings or (QUICK if quick else FULL)

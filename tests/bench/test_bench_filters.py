@@ -1,6 +1,6 @@
 """Speed of the Liu 2020 filters on our UKF core against FilterPy's UnscentedKalmanFilter running the
 identical model (same process/measurement functions, sigma parameters, noise, measurement sequence;
-see ``FilterPyUkf`` in tests/test_liu2020.py).  Run with ``make bench`` (pytest-benchmark); skipped in
+see ``FilterPyUkf`` in tests/methods/liu2020/filterpy_twin.py).  Run with ``make bench`` (pytest-benchmark); skipped in
 the normal test run.  Each benchmark records ``steps_per_s`` in ``extra_info``; the ratio test asserts
 the goal of >= 5x FilterPy's steps per second."""
 from __future__ import annotations
@@ -13,7 +13,8 @@ import pytest
 
 
 from methods.liu2020 import MiUkf, UkfIcr, run_liu_filter  # noqa: E402
-from tests.test_liu2020 import FilterPyUkf, make_run  # noqa: E402
+from tests.methods.liu2020.filterpy_twin import FilterPyUkf  # noqa: E402
+from tests.methods.liu2020.synthetic import make_run  # noqa: E402
 
 DURATION = 10.0  # s at 100 Hz: 1000 filter steps (GNSS at 10 Hz, encoders and IMU every step)
 

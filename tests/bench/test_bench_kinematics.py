@@ -1,7 +1,7 @@
 """Speed of the kinematic models (Mandow 2007, Wang 2015, ideal differential drive).
 
 Run with ``make bench`` (pytest-benchmark); skipped in the normal test run.  Fixed synthetic data
-(tests/test_mandow2007.py generators): a 30 s joystick calibration path with a 5 Hz reference
+(tests/methods/mandow2007/synthetic.py generators): a 30 s joystick calibration path with a 5 Hz reference
 (150 segments, 3000 encoder intervals) for the identifications, a 20 min 100 Hz log for dead
 reckoning.  ``extra_info`` records the recovered parameters (in gene quanta from the truth) and
 the dead-reckoning samples per second.
@@ -14,7 +14,7 @@ import pytest
 from methods import mandow2007 as M
 from methods.baselines import IdealDD
 from methods.wang2015 import PUBLISHED_CURVE, ChiLambda, ConstantChi
-from tests.test_mandow2007 import PLATFORM, joystick_run, on_grid
+from tests.methods.mandow2007.synthetic import PLATFORM, joystick_run, on_grid
 
 RANGES = M.GeneRanges.for_track(PLATFORM["track"])
 TRUTH = on_grid(M.TABLE_I["pneumatic_50psi"], RANGES)

@@ -1,0 +1,91 @@
+"""CLI commands that import and export logs: ``import-drive``, ``export-tum``, ``import-csv``, ``import-bag``.
+
+    skidbench import-drive TABLE [--platform P] [--wheel-radius R] [--track B] -o FOLDER
+    skidbench export-tum INPUT [--source truth|ref|gnss] -o out.tum
+    skidbench import-csv LOG --map MAPPING.toml -o run.parquet
+    skidbench import-bag BAG --map MAPPING.toml -o run.parquet
+
+Registered into :data:`bench.cli.COMMANDS` on import.
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from bench.cli import command
+
+
+# ------------------------------------------------------------------------------------------ DRIVE
+def _drive_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("table", type=Path, help="DRIVE window table (Parquet or pickle)")
+    p.add_argument("--platform", default=None, help="platform name or TOML path (e.g. husky)")
+    p.add_argument("--wheel-radius", type=float, default=None, help="[m], overrides the platform")
+    p.add_argument("--track", type=float, default=None, help="[m], overrides the platform")
+    p.add_argument("-o", "--output", type=Path, required=True, help="folder for one Parquet run per command step")
+
+
+def _import_drive(a: argparse.Namespace) -> int:
+    from bench.real.drive import import_drive
+
+    runs = import_drive(a.table, a.platform, a.wheel_radius, a.track)
+    for r in runs:
+        r.to_parquet(a.output / f"step{r.meta['calib_step']:03d}.parquet")
+    print(f"wrote {len(runs)} runs to {a.output}")
+    return 0
+
+
+command("import-drive", "import a DRIVE window table as one run per command step")((_drive_args, _import_drive))
+
+
+# ------------------------------------------------------------------------------------------ formats
+def _tum_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", type=Path, help="a run (.parquet) or an estimate (.csv from `skidbench estimate`)")
+    p.add_argument("--source", default="truth", choices=["truth", "ref", "gnss"], help="pose channels of a run")
+    p.add_argument("-o", "--output", type=Path, required=True)
+
+
+def _export_tum(a: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from bench.formats import run_to_tum
+    from bench.registry import Estimate
+    from bench.run import Run
+
+    if a.input.suffix == ".csv":
+        src = Estimate(pd.read_csv(a.input), method=a.input.stem)
+        run_to_tum(None, src, a.output)
+    else:
+        run_to_tum(Run.from_parquet(a.input), a.source, a.output)
+    print(f"wrote {a.output}")
+    return 0
+
+
+command("export-tum", "write a run's or an estimate's trajectory in TUM format")((_tum_args, _export_tum))
+
+
+def _imp_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("log", type=Path)
+    p.add_argument("--map", dest="mapping", type=Path, required=True, help="mapping TOML (columns/topics, units)")
+    p.add_argument("-o", "--output", type=Path, required=True)
+
+
+def _import_csv(a: argparse.Namespace) -> int:
+    from bench.formats import import_csv
+
+    run = import_csv(a.log, a.mapping)
+    run.to_parquet(a.output)
+    print(f"wrote {a.output} ({len(run.data)} rows)")
+    return 0
+
+
+def _import_bag(a: argparse.Namespace) -> int:
+    from bench.formats import import_bag
+
+    run = import_bag(a.log, a.mapping)
+    run.to_parquet(a.output)
+    print(f"wrote {a.output} ({len(run.data)} rows)")
+    return 0
+
+
+command("import-csv", "import a CSV log through a mapping file")((_imp_args, _import_csv))
+command("import-bag", "import a ROS 1/ROS 2 bag through a mapping file (rosbags)")((_imp_args, _import_bag))

@@ -1,0 +1,231 @@
+"""CLI commands for reproduction and regression: ``reproduce``, ``compare``; the extras of ``reproduce``.
+
+    skidbench reproduce [PAPER|EXTRA ...] [--all] [--quick] [--workers N] [--dask-scheduler ADDR] [--results DIR]
+    skidbench compare BASE.json NEW.json
+
+The extras (:data:`EXTRAS`: real, league, gap, stress, run in that order by ``--all``) and their result cache (a
+marker per extra recording the files it wrote, :func:`_extra_kept`).  Registered into :data:`bench.cli.COMMANDS`
+on import.
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import math
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Mapping
+
+from bench.cli import _progress, command
+from bench.cli.real import _extra_real, data_root
+from bench.report.io import atomic_write_text
+
+
+# ------------------------------------------------------------------------------------------ reproduce
+def _repro_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml); default all")
+    p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example, the real data and the stress report")
+    p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
+    p.add_argument("--results", type=Path, default=None, help="output folder (default results/)")
+
+
+EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int) registered by features
+
+
+def register_extra(name: str):
+    def deco(fn):
+        EXTRAS[name] = fn
+        return fn
+    return deco
+
+
+def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
+    """A marker per (extra, everything it depends on): code, specs, data, output folder."""
+    from bench.reproduce import code_key
+    from bench.reproduce.runner import DEFAULT_CACHE
+
+    table = data_root() / "drive_husky" / "husky_windows.parquet"
+    data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
+    key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id)
+    return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
+
+
+def _file_state(results_dir: Path) -> dict[str, int]:
+    """mtime (ns) of every file under ``results_dir`` by its relative path (what an extra rewrites: atomic writes give
+    each written file a new mtime even when its content is unchanged)."""
+    root = Path(results_dir)
+    if not root.is_dir():
+        return {}
+    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _extra_outputs(results_dir: Path, before: Mapping[str, int]) -> dict[str, str]:
+    """{relative path: sha256} of the files under ``results_dir`` written since the ``before`` state."""
+    after = _file_state(results_dir)
+    return {rel: _sha256(Path(results_dir) / rel) for rel, mt in sorted(after.items()) if before.get(rel) != mt}
+
+
+def _extra_kept(marker: Path, results_dir: Path) -> bool:
+    """True when the extra's marker exists and every file it recorded is in ``results_dir`` with the recorded
+    content: the marker alone (keyed on the code, data and output folder) does not show that the folder still holds
+    that run's output (a folder reset by git or edited by hand keeps the marker valid but not the files)."""
+    if not marker.is_file():
+        return False
+    try:
+        outputs = json.loads(marker.read_text())["outputs"]
+    except (ValueError, KeyError, TypeError):
+        return False  # a marker of the earlier format (no record of the files): recompute
+    return all((Path(results_dir) / rel).is_file() and _sha256(Path(results_dir) / rel) == digest
+               for rel, digest in outputs.items())
+
+
+def _remove_stale_temp_files(results_dir: Path) -> None:
+    """Temp files of an interrupted earlier run (``.<name>.<random>.tmp``: the atomic writes never
+    give them a final name) are deleted before a new run starts."""
+    from bench.reproduce.runner import DEFAULT_CACHE
+
+    for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
+        if folder.is_dir():
+            for p in folder.rglob(".*.tmp"):
+                p.unlink(missing_ok=True)
+
+
+def _reproduce(a: argparse.Namespace) -> int:
+    from bench import reproduce as R
+
+    results_dir = a.results or R.RESULTS
+    _remove_stale_temp_files(results_dir)
+    papers = [p for p in a.papers if p not in EXTRAS] or None
+    extras = [p for p in a.papers if p in EXTRAS]
+    if a.all or not a.papers:
+        extras = list(EXTRAS)
+    t0 = time.perf_counter()
+    with _progress() as prog:
+        task = prog.add_task("runs", total=None)
+
+        def progress(done: int, total: int) -> None:
+            prog.update(task, completed=done, total=total, description=f"simulating {done}/{total}")
+
+        def log(msg: str) -> None:
+            prog.console.print(msg)
+
+        if papers is not None or a.all or not a.papers:
+            R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
+                        results_dir=results_dir, log=log, progress=progress)
+        for name in extras:
+            marker = _extra_marker(name, results_dir, a.quick)
+            if _extra_kept(marker, results_dir):
+                log(f"{name}: unchanged since the last run, results kept")
+                continue
+            log(f"extra: {name}")
+            before = _file_state(results_dir)
+            EXTRAS[name](results_dir, a.quick, workers=a.workers)
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before)}, indent=1) + "\n")
+    R.link_extras(Path(results_dir), a.quick)
+    print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
+    return 0
+
+
+command("reproduce", "regenerate paper tables, figures, REPORT.md and metrics.json")((_repro_args, _reproduce))
+
+
+# ------------------------------------------------------------------------------------------ compare
+def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """Metrics of ``base`` that moved beyond their tolerance in ``new`` (or vanished / became NaN).
+
+    Values are read with :func:`bench.report.io.json_number`: null is NaN (no value: a NaN baseline
+    has nothing to move from), "inf" / "-inf" are infinite and equal only to the same infinity (a
+    change between finite and infinite, either way, is flagged; before strict JSON an infinite
+    baseline had an infinite relative tolerance and was never flagged)."""
+    from bench.report.io import json_number
+
+    out = []
+    bm, nm = base.get("metrics", {}), new.get("metrics", {})
+    for mid, b in bm.items():
+        bv = json_number(b["value"])
+        tol = b.get("tolerance", {})
+        allowed = max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(bv or 0.0))
+        if mid not in nm:
+            out.append({"metric": mid, "base": b["value"], "new": None, "allowed": allowed, "why": "missing in new"})
+            continue
+        nv = json_number(nm[mid]["value"])
+        if bv is None or nv is None:
+            out.append({"metric": mid, "base": b["value"], "new": nm[mid]["value"], "allowed": allowed,
+                        "why": "value is not a number"})
+            continue
+        if math.isnan(nv) and not math.isnan(bv):
+            out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed, "why": "became NaN"})
+        elif math.isnan(bv) or math.isnan(nv):
+            continue  # no value before (a NaN baseline has nothing to move from)
+        elif math.isinf(bv) or math.isinf(nv):
+            if nv != bv:
+                out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
+                            "why": f"changed from {bv} to {nv}"})
+        elif abs(nv - bv) > allowed:
+            out.append({"metric": mid, "base": bv, "new": nv, "allowed": allowed,
+                        "why": f"moved by {nv - bv:+.4g} (allowed ±{allowed:.3g})"})
+    return out
+
+
+def _cmp_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("base", type=Path)
+    p.add_argument("new", type=Path)
+
+
+def _compare(a: argparse.Namespace) -> int:
+    base = json.loads(a.base.read_text())
+    new = json.loads(a.new.read_text())
+    moved = compare_metrics(base, new)
+    if not moved:
+        print(f"no metric moved beyond its tolerance ({len(base.get('metrics', {}))} compared)")
+        return 0
+    for m in moved:
+        print(f"REGRESSION {m['metric']}: {m['base']} -> {m['new']} ({m['why']})")
+    print(f"{len(moved)} metric(s) moved beyond tolerance", file=sys.stderr)
+    return 1
+
+
+command("compare", "list metrics that moved beyond tolerance; non-zero exit on regression")((_cmp_args, _compare))
+
+
+# ------------------------------------------------------------------------------------------ extras
+register_extra("real")(_extra_real)  # the real data (bench.cli.real)
+
+
+@register_extra("league")
+def _extra_league(results_dir: Path, quick: bool, workers: int = 1) -> None:
+    from bench.reproduce.league import write_league
+    from bench.reproduce.runner import Runner
+
+    write_league(results_dir, quick, Runner(workers=workers))
+
+
+@register_extra("gap")
+def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: one worked example
+    from bench.gap import write_worked_example
+
+    write_worked_example(Path(results_dir) / "gap")
+
+
+@register_extra("stress")
+def _extra_stress(results_dir: Path, quick: bool, workers: int = 1) -> None:
+    """Filters under stress (``results/stress.md``): in ``make reproduce`` the short runs of seed 1
+    (``bench.robustness.stress.QUICK``, ~1.5 min on 2 cores); the six-seed + 1-hour table (``bench.robustness.stress.FULL``,
+    tens of minutes) is ``python -c "from bench.robustness.stress import stress_report; stress_report('results',
+    quick=False)"``.  Skipped by ``reproduce --quick`` (CI): ``make test`` runs the stress tests."""
+    if quick:
+        print("stress: skipped in --quick (tests/test_stress.py runs in make test)")
+        return
+    from bench.robustness.stress import stress_report
+
+    print(f"stress: {stress_report(results_dir, quick=True, workers=workers)}")

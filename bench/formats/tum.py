@@ -1,0 +1,90 @@
+"""TUM trajectories (``timestamp tx ty tz qx qy qz qw``, one pose a line, ``#`` comments; the format
+of the TUM RGB-D benchmark, read by evo): :func:`write_tum`, :func:`read_tum`, :func:`run_to_tum`.
+Numbers are written as Python's repr (shortest exact text), so a float64 round-trips exactly.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bench.metrics import Trajectory
+from bench.report.io import atomic_write_text
+from bench.run import Run, RunError
+
+__all__ = ["TUM_HEADER", "write_tum", "read_tum", "run_to_tum"]
+
+TUM_HEADER = "# timestamp tx ty tz qx qy qz qw"
+
+
+_atomic_write_text = atomic_write_text  # one implementation: bench.report.io
+
+
+def _tum_text(t: np.ndarray, xyz: np.ndarray, quat_xyzw: np.ndarray) -> str:
+    mat = np.column_stack([t, xyz, quat_xyzw])
+    fmt = " ".join(["%r"] * 8)  # repr: shortest text that round-trips a float64 exactly
+    body = "\n".join(fmt % tuple(row) for row in mat.tolist())
+    return f"{TUM_HEADER}\n{body}\n" if body else f"{TUM_HEADER}\n"
+
+
+def write_tum(path: str | Path, t: Any, x: Any, y: Any, yaw: Any, z: Any = 0.0) -> Path:
+    """Write a planar trajectory as TUM text (quaternion of a rotation ``yaw`` about z)."""
+    t = np.asarray(t, float).reshape(-1)
+    cols = {"x": x, "y": y, "yaw": yaw, "z": z}
+    arr = {k: np.broadcast_to(np.asarray(v, float), t.shape) for k, v in cols.items()}
+    for name, v in (("t", t), *arr.items()):
+        bad = ~np.isfinite(v)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise RunError(str(path), name, f"row {i}: {v[i]}", "TUM export needs finite values")
+    half = 0.5 * arr["yaw"]
+    quat = np.column_stack([np.zeros_like(t), np.zeros_like(t), np.sin(half), np.cos(half)])
+    xyz = np.column_stack([arr["x"], arr["y"], arr["z"]])
+    return _atomic_write_text(Path(path), _tum_text(t, xyz, quat))
+
+
+def read_tum(path: str | Path) -> Trajectory:
+    """Read a TUM file into a :class:`bench.metrics.Trajectory` (general 3-D rotations)."""
+    from scipy.spatial.transform import Rotation
+
+    path = Path(path)
+    if not path.is_file():
+        raise RunError(str(path), "<file>", str(path), "file not found")
+    try:
+        mat = np.loadtxt(path, comments="#", ndmin=2, dtype=float)
+    except ValueError as exc:
+        raise RunError(str(path), "<file>", str(exc).splitlines()[0].split(";")[0],
+                       "TUM rows must be 8 numbers: timestamp tx ty tz qx qy qz qw") from None
+    if mat.size == 0:
+        raise RunError(str(path), "<file>", "empty", "a TUM file needs at least one pose")
+    if mat.shape[1] != 8:
+        raise RunError(str(path), "<file>", f"{mat.shape[1]} columns",
+                       "TUM rows must be 8 numbers: timestamp tx ty tz qx qy qz qw")
+    bad = ~np.isfinite(mat)
+    if bad.any():
+        r, c = (int(v) for v in np.argwhere(bad)[0])
+        names = ("timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+        raise RunError(str(path), names[c], f"pose {r}: {mat[r, c]}", "must be finite")
+    qn = np.linalg.norm(mat[:, 4:], axis=1)
+    off = np.abs(qn - 1.0) > 1e-6
+    if off.any():
+        r = int(np.flatnonzero(off)[0])
+        raise RunError(str(path), "qx qy qz qw", f"pose {r}: norm {qn[r]}", "a unit quaternion")
+    rot = Rotation.from_quat(mat[:, 4:]).as_matrix()
+    return Trajectory(mat[:, 0], mat[:, 1:4], rot, name=path.stem)
+
+
+def run_to_tum(run: Run, source: Any = "truth", path: str | Path | None = None) -> str | Path:
+    """TUM export of a Run's ``truth``/``ref``/``gnss`` pose channels or of an Estimate.
+
+    Returns the written path when ``path`` is given, otherwise the TUM text."""
+    if isinstance(source, str):
+        traj = Trajectory.from_run(run, source)
+    else:
+        traj = Trajectory.from_estimate(source)
+    if path is None:
+        half = 0.5 * traj.yaw
+        quat = np.column_stack([np.zeros(len(traj)), np.zeros(len(traj)), np.sin(half), np.cos(half)])
+        return _tum_text(traj.t, traj.xyz, quat)
+    return write_tum(path, traj.t, traj.x, traj.y, traj.yaw, traj.xyz[:, 2])

@@ -1,0 +1,130 @@
+"""Held-out scoring of the real-data gap workflow (:mod:`bench.real.gap`): each held-out step replayed
+with the nominal testbed model and with the model the workflow ended with, residuals measured - model in
+:mod:`bench.gap`'s own residual space, pooled over steps per channel and per driving regime."""
+from __future__ import annotations
+
+import math
+from typing import Any, Sequence
+
+import numpy as np
+
+from bench.gap import GapResult
+from bench.gap.catalogue import ModelConfig, get, nominal_config
+from bench.gap.fit import Evaluator
+from bench.gap.model import measured_grid, replay_scenario, testbed_trace
+from bench.gap.regimes import regimes_for
+from bench.gap.residuals import CHANNELS, CUMULATIVE_CHANNELS, UNITS, build_space
+from bench.run import Run
+
+MIN_REGIME_SHARE = 0.05  # a regime must hold this share of the held-out samples to be "where"
+
+
+def final_config(res: GapResult, scn: Any) -> ModelConfig:
+    """The model the workflow ended with, for a (replayed) scenario ``scn``: the nominal
+    configuration plus every effect it kept (named, or partial candidates), at the fitted values."""
+    cfg = nominal_config(scn)
+    for e in res.effects + res.partial:
+        eff = get(e["name"])
+        cfg = eff.apply(scn, cfg, tuple(float(e["parameters"][p.name]) for p in eff.params))
+    return cfg
+
+
+def step_residuals(run: Run, scenario: Any, res: GapResult) -> dict[str, Any]:
+    """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
+    noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
+    alignment as inside the workflow)."""
+    run = run.without_truth()
+    rscn, init = replay_scenario(run, scenario)
+    space = build_space(run, regimes_for(scenario.platform))
+    grid = measured_grid(run, space.t, init, scenario)
+    ev = Evaluator(rscn, grid, space, testbed_trace, workers=1)
+    out: dict[str, Any] = {"space": space, "cost": {}, "raw": {}}
+    for key, cfg in (("before", nominal_config(rscn)), ("after", final_config(res, rscn))):
+        sig = ev.signals(cfg)
+        out["raw"][key] = space.raw(sig)
+        out["cost"][key] = space.cost(sig)
+    out["j_noise"] = space.j_noise
+    return out
+
+
+def wheel_series(run: Run, scenario: Any, res: GapResult) -> dict[str, dict[str, np.ndarray]]:
+    """For the figure: commanded, measured, nominal-model and final-model wheel speeds of ``run``."""
+    r = step_residuals(run, scenario, res)
+    sp = r["space"]
+    out = {}
+    for c, cmd in (("enc_wl", "cmd_wl"), ("enc_wr", "cmd_wr")):
+        if c not in sp.channels:
+            continue
+        t = sp.t[c]
+        out[c] = {"t": t, "measured": sp.meas[c], "command": np.interp(t, run.t, run[cmd]),
+                  "nominal": sp.meas[c] - r["raw"]["before"][c], "final": sp.meas[c] - r["raw"]["after"][c]}
+    return out
+
+
+def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str]) -> dict[str, Any]:
+    """Pool per-step residuals: per channel RMS [SI] and normalised RMS before/after; per regime the
+    share of samples and the excess cost over the local channels (as bench.gap.residuals.regime_table,
+    pooled over steps: sum_c w_c max(mean (r/sigma)^2 - (sigma_hat/sigma)^2, 0))."""
+    chans = [c for c in CHANNELS if any(c in s["space"].channels for s in steps)]
+    per: dict[str, dict[str, float]] = {}
+    for c in chans:
+        row: dict[str, float] = {"unit": UNITS[c]}
+        for key in ("before", "after"):
+            r2, z2, n = 0.0, 0.0, 0
+            for s in steps:
+                if c not in s["space"].channels:
+                    continue
+                r = s["raw"][key][c]
+                ok = np.isfinite(r)
+                r2 += float(np.sum(r[ok] ** 2))
+                z2 += float(np.sum((r[ok] / s["space"].sigma[c]) ** 2))
+                n += int(ok.sum())
+            row[f"rms_{key}"] = math.sqrt(r2 / n) if n else math.nan
+            row[f"normalised_rms_{key}"] = math.sqrt(z2 / n) if n else math.nan
+            row["n"] = n
+        row["change_percent"] = (100.0 * (row["rms_after"] / row["rms_before"] - 1.0)
+                                 if row["rms_before"] > 0 else math.nan)
+        per[c] = row
+    regimes: dict[str, dict[str, Any]] = {}
+    total = sum(int(np.isfinite(s["raw"]["before"][c]).sum()) for s in steps for c in s["space"].channels)
+    for i, name in enumerate(regime_names):
+        entry: dict[str, Any] = {"n": 0}
+        for key in ("before", "after"):
+            excess, nrms, count = 0.0, {}, 0
+            for c in chans:
+                acc, n, noise = 0.0, 0, 0.0
+                for s in steps:
+                    sp = s["space"]
+                    if c not in sp.channels:
+                        continue
+                    m = (sp.regime[c] == i) & np.isfinite(s["raw"][key][c])
+                    z2 = (s["raw"][key][c][m] / sp.sigma[c]) ** 2
+                    acc += float(z2.sum())
+                    noise += float(m.sum()) * (sp.sigma_hat[c] / sp.sigma[c]) ** 2
+                    n += int(m.sum())
+                if n == 0:
+                    continue
+                count += n
+                nrms[c] = math.sqrt(acc / n)
+                if c not in CUMULATIVE_CHANNELS:
+                    excess += CHANNELS[c][1] * max(acc / n - noise / n, 0.0)
+            entry[f"excess_{key}"] = excess
+            entry[f"normalised_rms_{key}"] = nrms
+            entry["n"] = count
+        if entry["n"]:
+            entry["share"] = entry["n"] / total if total else 0.0
+            local = {c: v for c, v in entry["normalised_rms_after"].items() if c not in CUMULATIVE_CHANNELS}
+            entry["worst_channel_after"] = max(local, key=local.get) if local else ""
+            regimes[name] = entry
+    pool = {k: v for k, v in regimes.items() if v["share"] >= MIN_REGIME_SHARE} or regimes
+    worst = max(pool, key=lambda k: pool[k]["excess_after"]) if pool else None
+    cost_b = [s["cost"]["before"] for s in steps]
+    cost_a = [s["cost"]["after"] for s in steps]
+    jn = [s["j_noise"] for s in steps]
+    return {
+        "channels": per, "regimes": regimes, "worst_regime": worst,
+        "cost": {"before_mean": float(np.mean(cost_b)), "after_mean": float(np.mean(cost_a)),
+                 "j_noise_mean": float(np.mean(jn)),
+                 "steps_improved": int(sum(a < b for a, b in zip(cost_a, cost_b))), "n_steps": len(steps),
+                 "per_step": [{"before": b, "after": a, "j_noise": j} for b, a, j in zip(cost_b, cost_a, jn)]},
+    }

@@ -1,0 +1,207 @@
+"""One paper's reproduction: its declaration (``scenarios/papers/<paper>.toml``, loaded and checked), the
+:class:`Context` a compute function gets, helpers for compute functions (published values, mean and
+confidence interval over seeds), and :func:`reproduce_paper`, which computes the tables and the claims'
+verdicts and writes ``results/<paper>/``, through the result cache keyed by
+:func:`bench.reproduce.provenance.code_key`.
+"""
+from __future__ import annotations
+
+import importlib
+import math
+import pickle
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+from bench.report.io import atomic_path
+from bench.reproduce.claims import CLAIM_KINDS, claim_metric_ids, evaluate_claim, row_verdict
+from bench.reproduce.provenance import code_key
+from bench.reproduce.report import write_paper
+from bench.reproduce.runner import REPO, Runner
+from bench.spec import SCENARIO_DIR, SpecError
+
+__all__ = ["PAPERS_DIR", "RESULTS", "Context", "load_paper", "published_values", "mean_ci", "list_papers",
+           "PaperResult", "reproduce_paper"]
+
+PAPERS_DIR = SCENARIO_DIR / "papers"
+RESULTS = REPO / "results"
+
+
+@dataclass
+class Context:
+    """What a compute function gets: simulation through the cache, seeds, output folder."""
+
+    paper: str
+    runner: Runner
+    out_dir: Path
+    quick: bool = False
+    seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
+    figures: list[tuple[str, str]] = field(default_factory=list)
+    notes: dict[str, str] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)  # persisted with the result (keep it small)
+    scratch: dict[str, Any] = field(default_factory=dict)  # shared between compute functions, never persisted
+
+    def simulate(self, scn: Any, seed: int = 0):
+        return self.runner.simulate(scn, seed)
+
+    def simulate_many(self, requests):
+        return self.runner.simulate_many(requests)
+
+    def figure(self, path: Path, caption: str) -> None:
+        self.figures.append((str(Path(path).relative_to(self.out_dir.parent)), caption))
+
+    def note(self, key: str, text: str) -> None:
+        """Attach an explanation to a table or claim id (shown beside it in the report)."""
+        self.notes[key] = text
+
+
+# ----------------------------------------------------------------------------------- declarations
+def load_paper(name_or_path: str | Path) -> dict[str, Any]:
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = PAPERS_DIR / f"{name_or_path}.toml"
+    if not path.is_file():
+        raise SpecError(path, "<file>", str(path), "no such paper declaration")
+    with open(path, "rb") as fh:
+        try:
+            decl = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as exc:
+            raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    for key in ("paper", "module", "tables"):
+        if key not in decl:
+            raise SpecError(path, key, None, "required field is missing")
+    table_ids = [t.get("id") for t in decl["tables"]]
+    for i, tid in enumerate(table_ids):
+        if table_ids.index(tid) != i:
+            raise SpecError(path, f"tables[{i}].id", tid, "table ids must be unique")
+    claim_ids: set[str] = set()
+    for i, c in enumerate(decl.get("claims", [])):
+        if c.get("kind") not in CLAIM_KINDS:
+            raise SpecError(path, f"claims[{i}].kind", c.get("kind"), f"one of {CLAIM_KINDS}")
+        if c.get("id") in claim_ids:
+            raise SpecError(path, f"claims[{i}].id", c.get("id"), "claim ids must be unique")
+        claim_ids.add(c.get("id"))
+        for mid in claim_metric_ids(c):
+            if mid.split(".")[0] not in table_ids:
+                raise SpecError(path, f"claims[{i}]", mid, f"a metric '<table>.<metric>' of a declared table {table_ids}")
+    decl["_path"] = str(path)
+    return decl
+
+
+def published_values(paper: str, table_id: str) -> dict[str, float]:
+    """Published numbers of a declared table (metric -> value), for compute functions that need them."""
+    for tab in load_paper(paper)["tables"]:
+        if tab["id"] == table_id:
+            return {r["metric"]: float(r["published"]) for r in tab.get("rows", []) if "published" in r}
+    raise KeyError(f"{paper}.toml declares no table '{table_id}'")
+
+
+def mean_ci(values: Any, confidence: float = 0.95) -> tuple[float, float, float]:
+    """Mean and two-sided Student-t confidence interval of the mean (NaN bounds for < 2 values)."""
+    import numpy as np
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    m = float(np.mean(x))
+    if x.size < 2:
+        return m, math.nan, math.nan
+    half = float(stats.t.ppf(0.5 + confidence / 2, x.size - 1) * np.std(x, ddof=1) / math.sqrt(x.size))
+    return m, m - half, m + half
+
+
+def list_papers() -> list[str]:
+    return sorted(p.stem for p in PAPERS_DIR.glob("*.toml"))
+
+
+# ----------------------------------------------------------------------------------- running
+@dataclass
+class PaperResult:
+    paper: str
+    decl: dict[str, Any]
+    metrics: dict[str, float]
+    tables: list[dict[str, Any]]
+    claims: list[dict[str, Any]]
+    figures: list[tuple[str, str]]
+    notes: dict[str, str]
+    seconds: float
+    info: dict[str, Any]
+    figure_bytes: dict[str, bytes] = field(default_factory=dict)
+
+
+def _result_cache(runner: Runner) -> Path:
+    return Path(runner.cache_dir).parent / "result-cache"
+
+
+def _cached_result(folder: Path, name: str, key: str) -> PaperResult | None:
+    path = folder / f"{name}-{key}.pkl"
+    if not path.is_file():
+        return None
+    try:
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
+        return None
+
+
+def _store_result(folder: Path, name: str, key: str, res: PaperResult) -> None:
+    with atomic_path(folder / f"{name}-{key}.pkl") as tmp:
+        with open(tmp, "wb") as fh:
+            pickle.dump(res, fh)
+
+
+def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quick: bool = False,
+                    log: Callable[[str], None] = lambda s: None, use_cache: bool = True) -> PaperResult:
+    """Compute one paper's tables and claims and write ``results/<paper>/``.  When nothing the
+    result depends on changed (:func:`code_key`), the previous result is re-written from the
+    result cache instead of being recomputed."""
+    decl = load_paper(name)
+    paper = decl["paper"]
+    out_dir = results_dir / paper
+    key = code_key(paper, str(quick), decl["_path"])
+    if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
+        log(f"{paper}: unchanged since the last run, results taken from the cache")
+        write_paper(hit, out_dir)
+        _copy_figures(hit, out_dir)
+        return hit
+    ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick)
+    module = importlib.import_module(decl["module"])
+    runner.served.clear()
+    metrics: dict[str, float] = {}
+    t0 = time.perf_counter()
+    tables = []
+    for tab in decl["tables"]:
+        log(f"{paper}: {tab['id']} — {tab.get('title', '')}")
+        fn = getattr(module, tab["compute"])
+        got = fn(ctx) or {}
+        for k, v in got.items():
+            metrics[f"{tab['id']}.{k}"] = float(v) if isinstance(v, (int, float, bool)) else v
+        rows = []
+        for row in tab.get("rows", []):
+            rep = got.get(row["metric"])
+            rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row)})
+        tables.append({**tab, "rows_out": rows, "all_metrics": got})
+    claims = []
+    for c in decl.get("claims", []):
+        holds, text = evaluate_claim(c, metrics)
+        claims.append({**c, "holds": holds, "measured": text, "why": ctx.notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")})
+    served = sorted(set(runner.served))
+    ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
+    ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
+    res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
+    write_paper(res, out_dir)
+    res.figure_bytes = {rel: (out_dir.parent / rel).read_bytes() for rel, _ in ctx.figures
+                        if (out_dir.parent / rel).is_file()}
+    if use_cache:
+        _store_result(_result_cache(runner), paper, key, res)
+    return res
+
+
+def _copy_figures(res: PaperResult, out_dir: Path) -> None:
+    """Figures of a cached result, written back when missing (e.g. into another results folder)."""
+    for rel, data in getattr(res, "figure_bytes", {}).items():
+        target = out_dir.parent / rel
+        if not target.is_file() or target.read_bytes() != data:
+            with atomic_path(target) as tmp:
+                tmp.write_bytes(data)

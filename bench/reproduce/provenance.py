@@ -1,0 +1,52 @@
+"""What a result is tied to: the git commit (``+dirty`` for uncommitted changes), the package versions,
+and :func:`code_key`, the hash of everything a paper's result depends on (the key of the result cache).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform as _platform
+import subprocess
+
+from bench.reproduce.runner import REPO
+
+__all__ = ["code_key", "git_commit", "package_versions"]
+
+
+def code_key(*extra: str) -> str:
+    """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
+    platform, terrain and paper files, the installed package versions, plus ``extra``."""
+    h = hashlib.sha256()
+    for folder, pattern in (("bench", "**/*.py"), ("methods", "**/*.py"), ("scenarios", "**/*.toml")):
+        for p in sorted((REPO / folder).glob(pattern)):
+            h.update(str(p.relative_to(REPO)).encode())
+            h.update(p.read_bytes())
+    h.update(json.dumps(package_versions(), sort_keys=True).encode())
+    h.update(json.dumps(sorted((k, v) for k, v in os.environ.items() if k.startswith("SKIDBENCH_")
+                               and k != "SKIDBENCH_CACHE")).encode())
+    for e in extra:
+        h.update(e.encode())
+    return h.hexdigest()[:24]
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", ":!results"], cwd=REPO,
+                               capture_output=True, text=True).stdout.strip()
+        return out.stdout.strip() + ("+dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"  # (results/ itself is excluded from the dirty check: reproduce writes it)
+
+
+def package_versions() -> dict[str, str]:
+    from importlib import metadata
+
+    out = {"python": _platform.python_version()}
+    for pkg in ("numpy", "scipy", "pandas", "pyarrow", "pybullet", "matplotlib", "pygad", "filterpy"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            pass
+    return out

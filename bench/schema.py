@@ -1,0 +1,124 @@
+"""Strictly validated data: :func:`build` makes a frozen dataclass from a mapping (parsed TOML, or JSON
+metadata), checking every key against the dataclass's fields, every value against its type hint and the
+ranges of its ``_checks``; the few file fields in the papers' units (``*_deg``) are converted to SI.
+Every problem raises :class:`SpecError` naming the file, the dotted field and the offending value.
+Used for the specs of :mod:`bench.spec` and for the import mappings of :mod:`bench.formats`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from pathlib import Path
+from typing import Any, Mapping
+
+from bench.report.io import INF_STRINGS
+
+__all__ = ["SpecError", "build"]
+
+
+class SpecError(ValueError):
+    """A spec file is malformed. The message names file, field and value."""
+
+    def __init__(self, file: str | Path | None, fieldname: str, value: Any, expected: str):
+        self.file, self.field, self.value, self.expected = str(file), fieldname, value, expected
+        super().__init__(f"{file}: field '{fieldname}' = {value!r}: {expected}")
+
+
+
+_UNIT_FIELDS = {  # file field -> (dataclass field, converter)
+    "slope_deg": ("slope", math.radians),
+    "initial_yaw_deg": ("initial_yaw", math.radians),
+}
+
+
+def _json_inf(value: Any, tp: Any) -> Any:
+    """A float field's "inf" / "-inf" (strict JSON has no infinity: bench.report.io.json_safe
+    writes it as these strings, e.g. in runs_manifest.json) as the float; any other value as is."""
+    if tp is float and isinstance(value, str):
+        return INF_STRINGS.get(value.strip().lower(), value)
+    return value
+
+
+def _type_ok(value: Any, tp: Any) -> bool:
+    if tp is float:
+        return isinstance(value, (int, float)) and not isinstance(value, bool)
+    if tp is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if tp is str:
+        return isinstance(value, str)
+    if tp is bool:
+        return isinstance(value, bool)
+    return True
+
+
+def _coerce(value: Any, tp: Any, file: Path | str, name: str) -> Any:
+    origin = typing.get_origin(tp)
+    if dataclasses.is_dataclass(tp):
+        if not isinstance(value, Mapping):
+            raise SpecError(file, name, value, f"expected a table for {tp.__name__}")
+        return build(tp, value, file, name)
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, (list, tuple)):
+            raise SpecError(file, name, value, "expected an array")
+        inner = args[0]
+        out = []
+        for i, v in enumerate(value):
+            iname = f"{name}[{i}]"
+            if dataclasses.is_dataclass(inner):
+                if isinstance(v, (list, tuple)):  # positional form: [t_end, a, b]
+                    fnames = [f.name for f in dataclasses.fields(inner) if not f.name.startswith("_")]
+                    if len(v) != len(fnames):
+                        raise SpecError(file, iname, v, f"expected {len(fnames)} numbers {fnames}")
+                    v = dict(zip(fnames, v))
+                out.append(_coerce(v, inner, file, iname))
+            elif typing.get_origin(inner) is tuple:
+                out.append(_coerce(v, inner, file, iname))
+            else:
+                v = _json_inf(v, inner if inner is not Ellipsis else float)
+                if not _type_ok(v, inner if inner is not Ellipsis else float):
+                    raise SpecError(file, iname, v, f"expected {getattr(inner, '__name__', inner)}")
+                out.append(float(v) if inner is float else v)
+        return tuple(out)
+    value = _json_inf(value, tp)
+    if not _type_ok(value, tp):
+        raise SpecError(file, name, value, f"expected {getattr(tp, '__name__', tp)}")
+    if tp is float:
+        value = float(value)
+        if math.isnan(value):
+            raise SpecError(file, name, value, "expected a number, not NaN")
+    return value
+
+
+def build(cls: type, data: Mapping[str, Any], file: Path | str = "<dict>", prefix: str = "") -> Any:
+    """Build dataclass ``cls`` from a mapping, validating keys, types and ranges."""
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if not f.name.startswith("_")}
+    kwargs: dict[str, Any] = {}
+    for key, value in data.items():
+        name = f"{prefix}.{key}" if prefix else key
+        if key in _UNIT_FIELDS and _UNIT_FIELDS[key][0] in fields:
+            target, conv = _UNIT_FIELDS[key]
+            if not _type_ok(value, float):
+                raise SpecError(file, name, value, "expected a number")
+            kwargs[target] = conv(float(value))
+            continue
+        if key not in fields:
+            raise SpecError(file, name, value, f"unknown key; allowed: {sorted(fields)}")
+        kwargs[key] = _coerce(value, hints[key], file, name)
+    missing = [
+        n for n, f in fields.items()
+        if n not in kwargs and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
+    if missing:
+        name = f"{prefix}.{missing[0]}" if prefix else missing[0]
+        raise SpecError(file, name, None, "required field is missing")
+    checks = getattr(cls, "_checks", {})
+    for key, value in kwargs.items():
+        if key in checks:
+            ok, expected = checks[key]
+            if not ok(value):
+                name = f"{prefix}.{key}" if prefix else key
+                raise SpecError(file, name, value, f"expected {expected}")
+    return cls(**kwargs)

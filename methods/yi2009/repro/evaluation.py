@@ -1,0 +1,201 @@
+"""The runs of the Yi 2009 reproduction (Figs. 3-7), simulated, calibrated, estimated and scored once.
+
+:func:`_evaluate`: the identification runs of Fig. 4 (scheme 3's ``calibrate`` fits S(gamma) (41) on them), the
+140/60 rpm runs of Fig. 3, the diagnostic speed pairs, and the scored paths (with the better-sensor sensitivity
+variant) estimated by the three schemes and scored (:class:`Evaluation`, :class:`PathResult`); memoised in
+``ctx.info`` for the compute functions of :mod:`methods.yi2009.repro.figures` and the NEES study.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from bench import registry
+from bench.metrics import Trajectory, final_position_error, position_rms
+from bench.registry import Estimate
+from bench.reproduce import mean_ci
+from bench.run import Run
+from bench.spec import Scenario, load_scenario
+from methods.yi2009.ekf import Yi2009Ekf
+from methods.yi2009.repro.settings import METHOD_NAMES, PATHS, S_SCENARIO, SETTINGS, VARIANTS, Settings, _geometry
+from methods.yi2009.repro.vision import s_gamma_truth_point, slip_agreement, vision_slip
+from methods.yi2009.s_gamma import PUBLISHED_S_GAMMA, reference_s_gamma_point
+
+_CACHE_KEY = "_yi2009_evaluation"
+
+
+@dataclass(frozen=True)
+class PathResult:
+    """Everything measured on one scored path (all seeds) and the diagnostics."""
+
+    key: str
+    seeds: tuple[int, ...]
+    scores: Mapping[str, tuple[Mapping[str, float], ...]]  # "v1".."v3", "v3_pub", "fine_v1".. -> per seed
+    truth: Mapping[str, float]  # truth diagnostics (seed independent physics)
+    run0: Run
+    est0: Mapping[int, Estimate]
+    vision0: tuple[np.ndarray, np.ndarray]
+
+    def mean(self, method: str, metric: str) -> tuple[float, float, float]:
+        return mean_ci([s[metric] for s in self.scores[method]], SETTINGS.confidence)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    seeds: tuple[int, ...]
+    quick: bool
+    calibrated: Yi2009Ekf  # scheme 3 with the fitted S(gamma)
+    ident: tuple[dict[str, Any], ...]  # per identification run: terrain, rpm, gamma, S (ref), truth
+    fig3: Mapping[str, dict[str, float]]  # terrain -> S (ref) and truth at 140/60 rpm
+    speed: Mapping[tuple[float, float], tuple[float, float]]  # (w_L, w_R) rpm -> truth (|gamma|, S [m]), concrete
+    paths: Mapping[str, PathResult]
+
+
+def _ident_scenario(terrain: str, wl_rpm: float, wr_rpm: float, duration: float) -> Scenario:
+    return load_scenario(S_SCENARIO[terrain], {"command.segments": [[duration, wl_rpm, wr_rpm]], "duration": duration})
+
+
+def _score(run: Run, est: Estimate, vis: tuple[np.ndarray, np.ndarray], cfg: Settings, slips: bool = True
+           ) -> dict[str, float]:
+    """Per-run scores of one estimate."""
+    e = Trajectory.from_estimate(est)
+    truth = Trajectory.from_run(run, "truth")
+    out = {"rms": position_rms(truth, e), "rms_ref": position_rms(Trajectory.from_run(run, "ref"), e),
+           "final": final_position_error(truth, e)}
+    if not slips:
+        return out
+    t_end = float(run.t[-1]) - 0.5 * cfg.slip_window
+    lam_est = np.column_stack((est["slip_l"], est["slip_r"]))
+    tv, lv = vis
+    a = slip_agreement(tv, lv, est["t"], lam_est, (tv >= cfg.slip_t0) & (tv <= t_end))
+    out.update({"slip_rms": a["rms"], "slip_corr": a["corr"]})
+    r, _ = _geometry(run)
+    tt = run.t
+    truth_lam = np.column_stack((run["truth_slip_l"], run["truth_slip_r"]))
+    fast = (r * np.abs(run["truth_wl"]) >= cfg.slip_min_speed) & (r * np.abs(run["truth_wr"]) >= cfg.slip_min_speed)
+    b = slip_agreement(tt, np.clip(truth_lam, -1.0, 1.0), est["t"], lam_est, (tt >= cfg.slip_t0) & (tt <= t_end) & fast)
+    out.update({"slip_rms_truth": b["rms"], "slip_corr_truth": b["corr"]})
+    moving = est["t"] >= cfg.slip_t0
+    at_bound = np.nanmax(np.abs(lam_est[moving]), axis=1) >= cfg.bound_level
+    out["at_bound"] = float(np.mean(at_bound))
+    if "x_icr" in est.data.columns:
+        out["s_used"] = float(np.nanmedian(est["x_icr"][moving]))
+    return out
+
+
+def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settings) -> dict[str, float]:
+    """Truth quantities of a scored path (declared truth): net longitudinal slip, S, yaw rate, and the
+    magnitude/variation of the vision slip reference."""
+    r, _ = _geometry(run)
+    w = run.t >= cfg.slip_t0
+    tread = 0.5 * r * (run["truth_wl"][w] + run["truth_wr"][w])
+    out = {"net_slip": float(1.0 - np.sum(run["truth_vx"][w]) / np.sum(tread)),
+           "abs_wz": float(np.mean(np.abs(run["truth_wz"][w])))}
+    s = run["truth_x_icr"][w]
+    out["s_truth"] = float(np.nanmedian(s)) if np.isfinite(s).any() else math.nan
+    tv, lv = vis
+    t_end = float(run.t[-1]) - 0.5 * cfg.slip_window
+    m = (tv >= cfg.slip_t0) & (tv <= t_end) & np.isfinite(lv).all(axis=1)
+    out["ref_rms"] = float(np.sqrt(np.mean(lv[m] ** 2)))
+    out["ref_std"] = float(np.mean(np.std(lv[m], axis=0)))
+    tl = np.clip(np.column_stack((run["truth_slip_l"], run["truth_slip_r"])), -1.0, 1.0)
+    fin = w & np.isfinite(tl).all(axis=1)
+    out["truth_rms"] = float(np.sqrt(np.mean(tl[fin] ** 2)))
+    out["ref_vs_truth"] = slip_agreement(run.t, tl, tv, lv, (run.t >= cfg.slip_t0) & (run.t <= t_end))["rms"]
+    _, track = _geometry(run)
+    turn = w & (np.abs(run["truth_wz"]) > 0.05) & (np.abs(run["truth_vx"]) > 1e-3)
+    out["abs_gamma"] = (float(np.median(np.abs(track * run["truth_wz"][turn] / (2.0 * run["truth_vx"][turn]))))
+                        if turn.any() else math.nan)  # eq. (40) with (3), (4)
+    return out
+
+
+def _evaluate(ctx: Any) -> Evaluation:
+    """Simulate every run (one batch through the runner), calibrate S(gamma) on the identification runs,
+    estimate and score the scored runs; memoised in ``ctx.info`` for the other compute functions."""
+    cached = ctx.info.get(_CACHE_KEY)
+    if cached is not None:
+        return cached
+    cfg = SETTINGS
+    quick = bool(ctx.quick)
+    seeds = cfg.seeds_quick if quick else cfg.seeds_full
+    ctx.info["seeds"] = list(seeds)
+    sens = dict(cfg.sensitivity)
+
+    tags: list[tuple[Any, ...]] = []
+    reqs: list[tuple[Scenario, int]] = []
+    for i, (terrain, wl, wr) in cfg.ident(quick):
+        tags.append(("ident", i))
+        reqs.append((_ident_scenario(terrain, wl, wr, cfg.ident_duration), cfg.ident_seed0 + i))
+    fig3_idx = {}
+    for terrain in cfg.fig3_terrains:  # the 140/60 run of an identification surface is that run
+        hit = [i for i, (tt, wl, wr) in cfg.ident(quick) if tt == terrain and (wl, wr) == cfg.fig3_pair_rpm]
+        if hit:
+            fig3_idx[terrain] = ("ident", hit[0])
+        else:
+            fig3_idx[terrain] = ("fig3", terrain)
+            tags.append(("fig3", terrain))
+            reqs.append((_ident_scenario(terrain, *cfg.fig3_pair_rpm, cfg.ident_duration), cfg.ident_seed0))
+    speed_seed = cfg.ident_seed0 + cfg.ident_full.index(("concrete", *cfg.fig3_pair_rpm))  # 140/60 = that run
+    for wl, wr in cfg.speed_pairs_rpm:
+        tags.append(("speed", wl, wr))
+        reqs.append((_ident_scenario("concrete", wl, wr, cfg.ident_duration), speed_seed))
+    scored = {k: load_scenario(n) for k, n in PATHS.items()}
+    fine = {k: load_scenario(n, sens) for k, n in PATHS.items()}
+    for k in PATHS:
+        for s in seeds:
+            tags += [("scored", k, s), ("fine", k, s)]
+            reqs += [(scored[k], s), (fine[k], s)]
+    runs = dict(zip(tags, ctx.simulate_many(reqs)))
+
+    # ---- identification (Sec. V-B): scheme 3's calibrate fits eq. (41) on the reference-sensor points
+    ident_runs = [runs[("ident", i)] for i, _ in cfg.ident(quick)]
+    methods = {v: registry.calibrate(registry.get(METHOD_NAMES[v]), ident_runs) for v in VARIANTS}
+    v3 = methods[3]
+    pts = {rid: (g, s) for rid, g, s in v3.calibration_points}
+    ident = []
+    for (i, (terrain, wl, wr)), run in zip(cfg.ident(quick), ident_runs):
+        g, s = pts.get(run.id, (math.nan, math.nan))
+        gt, st = s_gamma_truth_point(run, cfg.s_settle)
+        ident.append({"index": i, "terrain": terrain, "wl_rpm": wl, "wr_rpm": wr, "seed": cfg.ident_seed0 + i,
+                      "gamma": g, "s": s, "gamma_truth": gt, "s_truth": st})
+    fig3 = {}
+    for terrain, tag in fig3_idx.items():
+        run = runs[tag]
+        p = reference_s_gamma_point(run, _geometry(run)[1], settle=cfg.s_settle)
+        fig3[terrain] = {"s": p[1] if p else math.nan, "gamma": p[0] if p else math.nan,
+                         "s_truth": s_gamma_truth_point(run, cfg.s_settle)[1]}
+
+    # ---- scored paths
+    v3_pub = Yi2009Ekf(variant=3, s_gamma=PUBLISHED_S_GAMMA)
+    results = {}
+    for k in PATHS:
+        scores: dict[str, list[dict[str, float]]] = {}
+        est0: dict[int, Estimate] = {}
+        vis0 = None
+        truth: dict[str, float] = {}
+        for i, s in enumerate(seeds):
+            run, frun = runs[("scored", k, s)], runs[("fine", k, s)]
+            vis = vision_slip(run, cfg.slip_window, cfg.slip_min_speed, cfg.slip_polyorder)
+            fvis = vision_slip(frun, cfg.slip_window, cfg.slip_min_speed, cfg.slip_polyorder)
+            for v in VARIANTS:
+                est = registry.estimate(methods[v], run)
+                scores.setdefault(f"v{v}", []).append(_score(run, est, vis, cfg))
+                scores.setdefault(f"fine_v{v}", []).append(_score(frun, registry.estimate(methods[v], frun), fvis, cfg))
+                if i == 0:
+                    est0[v] = est
+            scores.setdefault("v3_pub", []).append(_score(run, registry.estimate(v3_pub, run), vis, cfg))
+            if i == 0:
+                vis0 = vis
+                truth = _truth_diagnostics(run, vis, cfg)
+        results[k] = PathResult(k, tuple(seeds), {m: tuple(v) for m, v in scores.items()}, truth,
+                                runs[("scored", k, seeds[0])], est0, vis0)
+    speed = {}
+    for wl, wr in cfg.speed_pairs_rpm:
+        g, s_ = s_gamma_truth_point(runs[("speed", wl, wr)], cfg.s_settle)
+        speed[(wl, wr)] = (abs(g), s_)
+    ev = Evaluation(tuple(seeds), quick, v3, tuple(ident), fig3, speed, results)
+    ctx.info[_CACHE_KEY] = ev
+    return ev

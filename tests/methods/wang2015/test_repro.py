@@ -1,0 +1,48 @@
+"""Wang 2015: the reproduction's helpers (closed forms) and the quick reproduction end to end (run lengths of
+the grid, the literal eq. (46), the fitted eq. (44)).
+"""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from methods import wang2015 as W
+from methods.wang2015 import repro as WR
+from tests.methods.mandow2007.reproduction import quick_reproductions
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """Quick reproductions of both papers, cold cache, two simulation processes (run once per session)."""
+    return quick_reproductions(tmp_path_factory)
+
+
+def test_speed_statistics_closed_form():
+    mean, sd, rel, spread = WR.speed_statistics([1.0, 2.0, 3.0])
+    assert (mean, sd, spread) == (2.0, 1.0, 1.0)
+    assert rel == -0.5  # the first of the largest |deviations|, signed
+    assert WR.speed_statistics([1.0, 1.0, 4.0])[2] == pytest.approx(1.0)
+
+
+def test_grid_duration_turns_the_requested_angle():
+    for cr, v in ((0, 0.1), (3, 0.3), (7, 0.1), (7, 0.5)):
+        dur = WR.grid_duration(cr, v, 2 * math.pi, 0.4)
+        v_l = v * (cr - 1) / (cr + 1)
+        yaw_rate = (v - v_l) / (0.4 * 1.5)  # eqs. (11), (15) with chi = 1.5
+        assert yaw_rate * (dur - WR.SETTINGS.skip_start) == pytest.approx(2 * math.pi, abs=yaw_rate * 0.1)
+        assert yaw_rate * (dur - WR.SETTINGS.skip_start) >= 2 * math.pi
+
+
+def test_wang_grid_and_dead_reckoning_behaviour(results):
+    m = results[0]["wang2015"].metrics
+    for cr in range(8):  # each run turned about the requested 1.5 rad (quick) after the spin-up
+        assert m[f"table3.min_rotation_lambda{cr}"] > 1.4
+        assert m[f"table3.measured_curvature_ratio_lambda{cr}"] == pytest.approx(cr, abs=0.05)
+    # the printed eq. (46) halves the yaw rate: its heading error is far above the eq. (15) form
+    for model in ("constant", "chi_lambda"):
+        assert m[f"table4.{model}_literal_ms_dphi"] > 10 * m[f"table4.{model}_ms_dphi"]
+    # the fitted eq. (44) passes through the measured means within a few fit residuals
+    for cr in range(8):
+        fitted = float(W.chi_of_curvature_ratio(cr, m["fit.a"], m["fit.b"]))
+        assert fitted == pytest.approx(m[f"table3.chi_lambda{cr}"], abs=4 * m["fit.fit_rms_residual"])
