@@ -53,6 +53,9 @@ def _type_ok(value: Any, tp: Any) -> bool:
 
 
 def _coerce(value: Any, tp: Any, file: Path | str, name: str) -> Any:
+    convert = getattr(tp, "_from_spec", None)  # a type that converts its own file form (bench.sources.Sources)
+    if convert is not None:
+        return convert(value, file, name)
     origin = typing.get_origin(tp)
     if dataclasses.is_dataclass(tp):
         if not isinstance(value, Mapping):

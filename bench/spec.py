@@ -8,6 +8,9 @@ Units are SI inside.  Files may give a few quantities in the units the papers us
 carry the unit in their name (``*_deg``, ``*_rpm``, ``*_cm``) and are converted at the file
 boundary, into the SI field of the dataclass.  The validation itself (:func:`build`, :class:`SpecError`)
 is :mod:`bench.schema`; both names are importable from here.
+
+Every parameter of a platform or terrain file names its source in the file's ``[sources]`` table
+(:mod:`bench.sources`); :class:`Platform` and :class:`Terrain` keep them as ``sources`` (field -> source).
 """
 from __future__ import annotations
 
@@ -20,6 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench.schema import SpecError, build
+from bench.sources import Source, Sources, default_sources, file_sources, parameters
 
 SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -213,6 +217,8 @@ class Platform:
     pid: PidSpec = field(default_factory=PidSpec)
     sensors: SensorSpec = field(default_factory=SensorSpec)
     source: str = ""
+    # where each parameter comes from (bench.sources): provenance, not physics (no part of ==, hash, to_dict)
+    sources: Sources = field(default_factory=Sources, compare=False, repr=False)
 
     _checks = {
         "mass": (_positive, "> 0 kg"),
@@ -278,6 +284,7 @@ class Terrain:
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
     friction_patches: tuple[FrictionPatch, ...] = ()
     source: str = ""
+    sources: Sources = field(default_factory=Sources, compare=False, repr=False)  # as Platform.sources
 
     _checks = {
         "model": (lambda x: x in ("coulomb", "janosi"), "'coulomb' or 'janosi'"),
@@ -393,14 +400,46 @@ def parse_override(text: str) -> tuple[str, Any]:
     return key, value
 
 
+def _read_part(path: Path, cls: type) -> dict[str, Any]:
+    """A platform or terrain file as data, its ``[sources]`` checked (:func:`bench.sources.file_sources`) and
+    completed with the sources of the defaults it does not set, as ``data["sources"]`` (field -> Source)."""
+    raw = _read_toml(path)
+    srcs = dict(Sources._from_spec(file_sources(raw, path), path, "sources"))
+    data = {k: v for k, v in raw.items() if k != "sources"}
+    if "dt_max" in data:  # a terrain's physics-step requirement: applied to the scenario (load_scenario), not kept
+        dt_max, srcs = data["dt_max"], {k: v for k, v in srcs.items() if k != "dt_max"}
+        if cls is not Terrain or not (isinstance(dt_max, float) and 1e-4 <= dt_max <= 0.02):
+            raise SpecError(path, "dt_max", dt_max, "a terrain's largest physics step, in [1e-4, 0.02] s")
+    data["sources"] = {**default_sources(cls, srcs), **srcs}
+    return data
+
+
+def _apply_dt_max(data: dict[str, Any]) -> None:
+    """A scenario that sets no physics step runs at its terrain's ``dt_max`` when that is smaller than the
+    default and the terrain's law is still the Janosi law the requirement was measured for (bench.sources)."""
+    terr = data.get("terrain")
+    dt_max = terr.pop("dt_max", None) if isinstance(terr, dict) else None
+    if dt_max is not None and "dt" not in data and terr.get("model", "janosi") == "janosi":
+        data["dt"] = min(Scenario.dt, dt_max)
+
+
+def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str) -> None:
+    """The overridden fields of a platform / terrain table get kind ``override`` (``ref`` says where)."""
+    srcs = part.get("sources")
+    if isinstance(srcs, Mapping):
+        part["sources"] = Sources(srcs).overridden([k for k in keys if k.split(".")[0] != "sources"], ref)
+
+
 def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
     path = _resolve(name_or_path, root / "platforms")
-    return build(Platform, _read_toml(path), path)
+    return build(Platform, _read_part(path, Platform), path)
 
 
 def load_terrain(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Terrain:
     path = _resolve(name_or_path, root / "terrains")
-    return build(Terrain, _read_toml(path), path)
+    data = _read_part(path, Terrain)
+    data.pop("dt_max", None)  # a requirement on the scenario's step (load_scenario), not a terrain field
+    return build(Terrain, data, path)
 
 
 def _resolve(name_or_path: str | Path, folder: Path) -> Path:
@@ -415,7 +454,7 @@ def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[
     path = _resolve(name_or_path, root)
     raw = _read_toml(path)
     data = dict(raw)
-    for key, folder in (("platform", "platforms"), ("terrain", "terrains")):
+    for key, folder, cls in (("platform", "platforms", Platform), ("terrain", "terrains", Terrain)):
         ref = data.get(key)
         if ref is None:
             raise SpecError(path, key, None, "required field is missing")
@@ -423,8 +462,7 @@ def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[
             ppath = _resolve(ref, root / folder)
             if not ppath.is_file():
                 raise SpecError(path, key, ref, f"unknown {key}: no file {ppath}")
-            base = _read_toml(ppath)
-            data[key] = base
+            data[key] = _read_part(ppath, cls)
         elif not isinstance(ref, dict):
             raise SpecError(path, key, ref, f"expected a {key} name or table")
     # [platform_overrides] / [terrain_overrides] tables merge on top of the referenced files
@@ -432,6 +470,7 @@ def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[
         ov = data.pop(f"{key}_overrides", None)
         if ov:
             data[key] = _deep_merge(data[key], ov)
+            _mark_overrides(data[key], [k for k, _ in parameters(ov)], f"{path.name} [{key}_overrides]")
     return path, data
 
 
@@ -455,6 +494,11 @@ def load_scenario(
     path, data = scenario_data(name_or_path, root)
     for key, value in (overrides or {}).items():
         _set_dotted(data, key, value)
+        head, _, rest = key.partition(".")
+        if head in ("platform", "terrain") and rest and isinstance(data.get(head), dict):
+            keys = [rest + "." + k for k, _ in parameters(value)] if isinstance(value, Mapping) else [rest]
+            _mark_overrides(data[head], keys, "--set")
+    _apply_dt_max(data)
     data.setdefault("id", path.stem)
     data["source_file"] = str(path)
     return build(Scenario, data, path)
@@ -476,12 +520,21 @@ def replace(spec: Any, **changes: Any) -> Any:
             flat[k] = v
     for head, sub in nested.items():
         flat[head] = replace(getattr(spec if head not in flat else flat, head), **sub)
+    if isinstance(getattr(spec, "sources", None), Sources) and "sources" not in changes:
+        flat["sources"] = spec.sources.overridden(changes, "replace()")
     return dataclasses.replace(spec, **flat)
 
 
 def to_dict(spec: Any) -> dict[str, Any]:
-    """Plain-data form (for hashing and metadata)."""
-    return dataclasses.asdict(spec)
+    """Plain-data form (for hashing and metadata); the parameter sources are left out (provenance, not
+    physics: a reworded source changes no run)."""
+    return _without_sources(dataclasses.asdict(spec))
+
+
+def _without_sources(d: Any) -> Any:
+    if isinstance(d, dict):
+        return {k: _without_sources(v) for k, v in d.items() if not isinstance(v, Sources)}
+    return d
 
 
 def list_scenarios(root: Path = SCENARIO_DIR) -> list[str]:
@@ -490,7 +543,7 @@ def list_scenarios(root: Path = SCENARIO_DIR) -> list[str]:
 
 __all__ = [
     "SpecError", "MotorSpec", "PidSpec", "EncoderSpec", "ImuSpec", "GnssSpec", "ReferenceSpec",
-    "SensorSpec", "Platform", "Terrain", "FrictionPatch", "Segment", "CommandSpec", "Scenario",
+    "SensorSpec", "Platform", "Terrain", "FrictionPatch", "Segment", "CommandSpec", "Scenario", "Source", "Sources",
     "build", "load_platform", "load_terrain", "load_scenario", "scenario_from_dict", "replace",
     "to_dict", "list_scenarios", "parse_override", "scenario_data",
 ]

@@ -73,8 +73,14 @@ def test_claims_are_computed_not_written(paper_dir, tmp_path):
     claims = {c["id"]: c for c in res.claims}
     assert claims["order"]["holds"] is True
     assert claims["ratio"]["holds"] is False and "3.0" in claims["ratio"]["measured"]
+    assert claims["order"]["verdict"] == "holds" and claims["ratio"]["verdict"] == "does not hold"
+    assert claims["ratio"]["fails_if"] == "t1.double outside [2.97, 3.03]"
     md = (tmp_path / "results" / "fake" / "t1.md").read_text()
     assert "| steady speed |" in md and "0.194" in md
+    readme = (tmp_path / "results" / "fake" / "README.md").read_text()
+    assert readme.index("### Headline claims") < readme.index("speed < double") < readme.index("[Straight line](t1.md)")
+    assert "**no cause given**" in readme  # the failing claim of the paper declares no cause
+    assert '<a id="claim-ratio"></a>' in (tmp_path / "results" / "fake" / "claims_details.md").read_text()
 
 
 def test_evaluate_claim_kinds():

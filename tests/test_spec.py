@@ -88,3 +88,154 @@ def test_override_parsing():
     assert parse_override("platform.sensors.gnss.outages=[[10.0, 30.0]]") == ("platform.sensors.gnss.outages", [[10.0, 30.0]])
     s = load_scenario("circle_vinyl", dict([parse_override("platform.sensors.gnss.outages=[[10.0, 30.0]]")]))
     assert s.platform.sensors.gnss.outages == ((10.0, 30.0),)
+
+
+# --------------------------------------------------------------------------- parameter sources (issue 30)
+import dataclasses  # noqa: E402
+import glob  # noqa: E402
+import tomllib  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from bench.sources import SOURCE_KINDS  # noqa: E402
+from bench.spec import SCENARIO_DIR, Platform, Terrain, to_dict  # noqa: E402
+
+PLATFORM_FILES = sorted(glob.glob(str(SCENARIO_DIR / "platforms" / "*.toml")))
+TERRAIN_FILES = sorted(glob.glob(str(SCENARIO_DIR / "terrains" / "*.toml")))
+
+
+def _leaf_fields(cls: type, prefix: str = "") -> set[str]:
+    """Every parameter field of a Platform / Terrain, nested dataclasses by dotted key (independent of
+    bench.sources: walks the dataclass definitions)."""
+    out = set()
+    for f in dataclasses.fields(cls):
+        if f.name.startswith("_") or f.name in ("name", "source", "sources"):
+            continue
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        if dataclasses.is_dataclass(default):
+            out |= _leaf_fields(type(default), f"{prefix}{f.name}.")
+        else:
+            out.add(prefix + f.name)
+    return out
+
+
+def _claim_ids() -> set[str]:
+    ids = set()
+    for path in (SCENARIO_DIR / "papers").glob("*.toml"):
+        ids |= {f"{path.stem}.{c['id']}" for c in tomllib.loads(path.read_text()).get("claims", [])}
+    return ids
+
+
+@pytest.mark.parametrize("path", PLATFORM_FILES + TERRAIN_FILES, ids=lambda p: Path(p).stem)
+def test_every_shipped_parameter_names_its_source(path):
+    cls, load = (Platform, load_platform) if "/platforms/" in path else (Terrain, load_terrain)
+    spec = load(path)
+    assert set(spec.sources) == _leaf_fields(cls)  # every field: from the file's [sources] or the default's
+    raw = tomllib.loads(Path(path).read_text())
+    written = {k for k in raw if k not in ("name", "source", "sources") and not isinstance(raw[k], dict)}
+    written |= {f"{k}.{j}" for k, v in raw.items() if isinstance(v, dict) and k != "sources" for j in v
+                if not isinstance(v[j], dict)}
+    written |= {f"{k}.{j}.{i}" for k, v in raw.items() if isinstance(v, dict) and k != "sources"
+                for j, w in v.items() if isinstance(w, dict) for i in w}
+    for key in written - {"dt_max"}:  # dt_max: a requirement on the scenario's step, not a terrain field
+        src = spec.sources[key.replace("slope_deg", "slope")]
+        assert src.kind in SOURCE_KINDS and src.ref, (key, src)
+    claims = _claim_ids()
+    for key, src in spec.sources.items():
+        assert (src.kind == "chosen") == bool(src.claims), (key, src)
+        for c in src.claims:  # a chosen source names claims that exist, so they become calibration targets
+            assert c in claims, (key, c)
+
+
+def test_the_calibration_targets_named_by_issue_30_are_marked_chosen():
+    """The parameters the issue names as chosen for an outcome and kept (no independent source)."""
+    p20 = load_platform("p3at_pneumatic_20psi").sources
+    assert p20["motor.max_power"].kind == "chosen" and "yu2010.ramps_testbed" in p20["motor.max_power"].claims
+    assert p20["wheel_radius_scale_l"].kind == "chosen"
+    assert load_platform("dubhe").sources["motor.max_current"].kind == "chosen"
+    assert load_terrain("ramp_whiteboard_13p5").sources["mu_sa"].kind == "chosen"
+    for name in ("asphalt", "smooth_concrete"):
+        assert load_terrain(name).sources["mu_sa"].kind == "chosen"
+    speed = ("wang2015.chi_speed_constant", "wang2015.chi_speed_vs_curvature")
+    assert load_terrain("tile").sources["model"].claims == speed
+    # re-derived from Wang 2015 Table 1 (Wang's own terrain for its tile field): no longer chosen
+    t = load_terrain("tile")
+    assert (t.shear_modulus, t.mu_sa, t.mu_op, t.rolling_resistance) == (0.00054, 0.4437, 0.3093, 0.0371)
+    assert (t.mu_lat_ratio, t.shear_modulus_lat_ratio) == (1.0, 1.0)
+    assert {t.sources[k].kind for k in ("shear_modulus", "mu_sa", "mu_op", "rolling_resistance")} == {"paper"}
+
+
+def test_a_terrain_dt_max_sets_the_step_of_scenarios_that_set_none():
+    """Wang's K = 0.54 mm is resolved only at dt <= 1/1920 s (tile.toml [sources]): scenarios on tile run at it
+    unless they set dt, or replace the Janosi law the requirement was measured for."""
+    assert load_scenario("wang_circle_grid").dt == pytest.approx(1 / 1920)
+    assert load_scenario("wang_circle_grid", {"dt": 0.005}).dt == 0.005
+    assert load_scenario("gap_test_coulomb").dt == pytest.approx(1 / 120)  # tile with the Coulomb law
+    assert load_scenario("circle_vinyl").dt == pytest.approx(1 / 120)
+
+
+def _copy_without(tmp_path, name: str, line_start: str, folder: str = "terrains") -> Path:
+    text = (SCENARIO_DIR / folder / f"{name}.toml").read_text()
+    kept = [ln for ln in text.splitlines() if not ln.startswith(line_start)]
+    assert len(kept) == len(text.splitlines()) - 1  # exactly one line removed
+    out = tmp_path / f"{name}.toml"
+    out.write_text("\n".join(kept) + "\n")
+    return out
+
+
+def test_a_parameter_without_a_source_is_a_one_line_error_naming_file_field_value(tmp_path):
+    path = _copy_without(tmp_path, "vinyl", "mu_op = {")
+    with pytest.raises(SpecError) as ei:
+        load_terrain(path)
+    msg = str(ei.value)
+    assert "\n" not in msg and msg.startswith(f"{path}: field 'mu_op' = 0.3093: no source")
+    path = _copy_without(tmp_path, "p3at_solid", '"motor.max_power" = {', "platforms")
+    with pytest.raises(SpecError, match=r"field 'motor.max_power' = 10.0: no source"):
+        load_platform(path)
+    # a scenario naming the platform fails the same way (the file is checked where it is read)
+    scn = tmp_path / "s.toml"
+    scn.write_text(f'platform = "{path}"\nterrain = "vinyl"\nduration = 1.0\n[command]\nkind = "rotation"\n')
+    with pytest.raises(SpecError, match=r"p3at_solid.toml: field 'motor.max_power' = 10.0: no source"):
+        load_scenario(scn)
+
+
+@pytest.mark.parametrize("entry, fragment", [
+    ('mu_op = {kind = "guess", ref = "x"}',
+     "source kind 'guess' is not one of paper|datasheet|calibration|real|testbed|chosen"),
+    ('mu_op = {kind = "chosen", ref = "tuned"}', "a 'chosen' source lists the claims"),
+    ('mu_op = {kind = "paper", ref = ""}', "needs a ref"),
+    ('mu_op = {kind = "paper", ref = "Yu", claims = ["yu2010.fig9"]}', "only a 'chosen' source lists claims"),
+    ('mu_op = {kind = "chosen", ref = "x", claims = ["fig9"]}', "must be a list of"),
+    ('mu_op = {kind = "paper", reference = "Yu"}', "unknown key"),
+])
+def test_a_malformed_source_names_file_field_value(tmp_path, entry, fragment):
+    path = _copy_without(tmp_path, "vinyl", "mu_op = {")
+    path.write_text(path.read_text() + entry + "\n")
+    with pytest.raises(SpecError) as ei:
+        load_terrain(path)
+    assert str(ei.value).startswith(f"{path}: field 'mu_op' = 0.3093: ") and fragment in str(ei.value)
+
+
+def test_a_source_for_a_parameter_the_file_does_not_set_is_an_error(tmp_path):
+    path = tmp_path / "vinyl.toml"
+    path.write_text((SCENARIO_DIR / "terrains" / "vinyl.toml").read_text()
+                    + 'slope_deg = {kind = "paper", ref = "Yu Fig. 19"}\n')
+    with pytest.raises(SpecError, match=r"field 'sources.slope_deg' .* a source for a parameter the file does not set"):
+        load_terrain(path)
+
+
+def test_overrides_get_an_override_source_and_leave_the_physics_hash_alone():
+    from bench.sim import scenario_hash
+
+    base = load_scenario("mandow_straight_asphalt_solid")
+    assert base.platform.sources["sensors.reference.kind"].kind == "override"  # the scenario's [platform_overrides]
+    assert "[platform_overrides]" in base.platform.sources["sensors.reference.kind"].ref
+    assert base.terrain.sources["mu_sa"].kind == "chosen"
+    s = load_scenario("mandow_straight_asphalt_solid", {"terrain.mu_sa": 0.5, "platform.motor.max_power": 3.0})
+    assert s.terrain.mu_sa == 0.5 and s.terrain.sources["mu_sa"].kind == "override"
+    assert s.platform.sources["motor.max_power"].ref == "--set"
+    assert s.terrain.sources["mu_op"] == base.terrain.sources["mu_op"]  # untouched fields keep theirs
+    # sources are provenance: not in to_dict (run metadata, scenario hash) nor in equality
+    assert "sources" not in to_dict(base)["platform"] and "sources" not in to_dict(base.terrain)
+    stripped = dataclasses.replace(base.terrain, sources=type(base.terrain.sources)())
+    assert stripped == base.terrain
+    assert scenario_hash(dataclasses.replace(base, terrain=stripped)) == scenario_hash(base)

@@ -1,7 +1,12 @@
 """CLI commands for reproduction and regression: ``reproduce``, ``compare``; the extras of ``reproduce``.
 
     skidbench reproduce [PAPER|EXTRA ...] [--all] [--quick] [--workers N] [--dask-scheduler ADDR] [--results DIR]
+    skidbench reproduce --check [PAPER ...]      # check the declarations only (no run): exit 2 on an error
     skidbench compare BASE.json NEW.json
+
+A malformed paper declaration (``scenarios/papers/<paper>.toml``: :func:`bench.reproduce.paper.load_paper`) stops
+``reproduce`` before any run with a one-line error naming file, claim, field and value (exit 2); claims not yet
+converted to the claim schema of :mod:`bench.reproduce.claims` are listed as warnings.
 
 The extras (:data:`EXTRAS`: real, league, gap, stress, run in that order by ``--all``) and their result cache (a
 marker per extra recording the files it wrote, :func:`_extra_kept`).  Registered into :data:`bench.cli.COMMANDS`
@@ -32,6 +37,8 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
     p.add_argument("--results", type=Path, default=None, help="output folder (default results/)")
+    p.add_argument("--check", action="store_true",
+                   help="only check the paper declarations and list their warnings (no run; exit 2 on an error)")
 
 
 EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int) registered by features
@@ -103,8 +110,16 @@ def _reproduce(a: argparse.Namespace) -> int:
     from bench import reproduce as R
 
     results_dir = a.results or R.RESULTS
-    _remove_stale_temp_files(results_dir)
     papers = [p for p in a.papers if p not in EXTRAS] or None
+    if getattr(a, "check", False):
+        checked = papers or R.list_papers()
+        warnings: list[str] = []
+        R.check_declarations(checked, warnings.append)
+        for w in warnings:
+            print(w)
+        print(f"{len(checked)} paper declaration(s) checked: no error, {len(warnings)} warning(s)")
+        return 0
+    _remove_stale_temp_files(results_dir)
     extras = [p for p in a.papers if p in EXTRAS]
     if a.all or not a.papers:
         extras = list(EXTRAS)

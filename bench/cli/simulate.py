@@ -2,7 +2,7 @@
 
     skidbench list [--json]
     skidbench simulate SCENARIO --seed N [--set key=value ...] -o run.parquet
-    skidbench validate-testbed [--json] [--quick]
+    skidbench validate-testbed [--json] [--quick] [--calibration]
     skidbench estimate METHOD RUN.parquet [--calibrate RUN ...] -o est.csv
 
 Registered into :data:`bench.cli.COMMANDS` on import.
@@ -87,18 +87,22 @@ command("simulate", "simulate a scenario with a seed into a Parquet run log")((_
 # ------------------------------------------------------------------------------------------ validate
 def _val_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print the checks as JSON")
-    p.add_argument("--quick", action="store_true", help="fewer speeds in the chi grid")
+    p.add_argument("--quick", action="store_true", help="fewer speeds in the calibration chi grid")
+    p.add_argument("--calibration", action="store_true",
+                   help="also compute the calibration checks (the papers' figures on the testbed; no verdict)")
 
 
 def _validate(a: argparse.Namespace) -> int:
     from dataclasses import asdict
 
-    from bench.sim.validate import run_checks
+    from bench.sim.validate import run_calibration, run_checks
 
     log = (lambda s: print(s, file=sys.stderr)) if not a.json else (lambda s: None)
     checks = run_checks(progress=log, quick=a.quick)
+    calib = run_calibration(progress=log, quick=a.quick) if a.calibration else []
     if a.json:
-        print(dumps_json({"passed": all(c.passed for c in checks), "checks": [asdict(c) for c in checks]}, indent=1))
+        print(dumps_json({"passed": all(c.passed for c in checks), "checks": [asdict(c) for c in checks],
+                          "calibration": [asdict(c) for c in calib]}, indent=1))
     else:
         from rich.console import Console
         from rich.table import Table
@@ -107,11 +111,15 @@ def _validate(a: argparse.Namespace) -> int:
         for c in checks:
             meas = c.measured if not isinstance(c.measured, (dict, list)) else json.dumps(c.measured)[:60] + "..."
             tab.add_row(c.name, "[green]pass[/green]" if c.passed else "[red]FAIL[/red]", str(meas), c.expected, c.source)
+        for c in calib:
+            meas = c.measured if not isinstance(c.measured, (dict, list)) else json.dumps(c.measured)[:60] + "..."
+            tab.add_row(c.name, "calibration", str(meas), f"paper: {c.paper}", c.source)
         Console().print(tab)
     return 0 if all(c.passed for c in checks) else 1
 
 
-command("validate-testbed", "physics checks of the testbed against the papers")((_val_args, _validate))
+command("validate-testbed", "physics checks of the testbed against closed forms "
+        "(--calibration: the papers' figures, no verdict)")((_val_args, _validate))
 
 
 # ------------------------------------------------------------------------------------------ estimate

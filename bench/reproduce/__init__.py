@@ -21,11 +21,22 @@ Each paper declares its experiments in ``scenarios/papers/<paper>.toml``::
     [[claims]]
     id = "chi_decreases"
     text = "chi decreases as the curvature ratio grows"
-    source = "Wang 2015 Sec. 3.4"
+    quote = "..."                               # the paper's words, <= 300 characters
+    source = "Wang 2015 Sec. 3.4, p. 9693"
+    headline = true                             # abstract / conclusions / main comparative result
+    scope = "paper"                             # or "beyond": our own check, listed apart
     kind = "trend"                              # ordering | ratio | trend | within | flag
     series = ["table3.chi_lambda0", "table3.chi_lambda1"]
     direction = "decreasing"
     tolerance = 0.01
+    tolerance_origin = "..."                    # where the tolerance comes from
+      [claims.cause]                            # why it fails, when it does
+      kind = "testbed"                          # method | testbed | protocol | paper
+      text = "..."                              # <= 300 characters
+
+A table whose published numbers were measured on a real robot sets ``published_on = "real robot"``: its rows show
+the ratio reproduced / published and no verdict.  A claim a testbed parameter was chosen for (``[sources]`` of a
+platform or terrain, kind "chosen": :mod:`bench.reproduce.sources`) gets the verdict "calibration target".
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
@@ -39,7 +50,8 @@ nothing is written by hand.  Every file is written atomically.
 Modules: :mod:`~bench.reproduce.paper` (declarations, Context, one paper's reproduction and its result
 cache), :mod:`~bench.reproduce.claims` (claim kinds, verdicts), :mod:`~bench.reproduce.report` (tables,
 REPORT.md, metrics.json, history), :mod:`~bench.reproduce.provenance` (commit, package versions, code key),
-:mod:`~bench.reproduce.runner` (scenario x seed runs through the run cache), :mod:`~bench.reproduce.league`;
+:mod:`~bench.reproduce.runner` (scenario x seed runs through the run cache), :mod:`~bench.reproduce.sources`
+(calibration targets from the parameter sources), :mod:`~bench.reproduce.league`;
 :func:`reproduce` (all papers, serially or as parallel jobs) is here.  The names importers use are
 importable from ``bench.reproduce``.
 """
@@ -50,20 +62,24 @@ from pathlib import Path
 from typing import Callable
 
 from bench.report.io import atomic_write_json
-from bench.reproduce.claims import CLAIM_KINDS, claim_metric_ids, evaluate_claim, row_verdict
-from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, list_papers, load_paper, mean_ci,
-                                   published_values, reproduce_paper)
+from bench.reproduce.claims import (CAUSE_KINDS, CLAIM_KINDS, SCOPES, VERDICTS, claim_metric_ids, evaluate_claim,
+                                    fails_if, row_verdict, verdict)
+from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, claim_result, list_papers, load_paper,
+                                   mean_ci, published_values, reproduce_paper)
 from bench.reproduce.provenance import code_key, git_commit, package_versions
-from bench.reproduce.report import (EXTRA_RESULTS, EXTRAS_BEGIN, EXTRAS_END, append_history, link_extras,
-                                    metrics_document, paper_markdown, write_paper, write_report)
+from bench.reproduce.report import (EXTRA_RESULTS, EXTRAS_BEGIN, EXTRAS_END, append_history, claims_document,
+                                    link_extras, metrics_document, paper_markdown, write_documents, write_paper,
+                                    write_report)
 from bench.reproduce.runner import REPO, Runner
+from bench.reproduce.sources import calibration_targets, parameter_sources
 
 __all__ = [
-    "reproduce", "PAPER_COST_ORDER", "CLAIM_KINDS", "claim_metric_ids", "evaluate_claim", "row_verdict",
-    "PAPERS_DIR", "RESULTS", "Context", "PaperResult", "list_papers", "load_paper", "mean_ci", "published_values",
-    "reproduce_paper", "code_key", "git_commit", "package_versions", "EXTRA_RESULTS", "EXTRAS_BEGIN",
-    "EXTRAS_END", "append_history", "link_extras", "metrics_document", "paper_markdown", "write_paper",
-    "write_report", "REPO", "Runner",
+    "reproduce", "check_declarations", "PAPER_COST_ORDER", "CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "VERDICTS", "claim_metric_ids",
+    "evaluate_claim", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
+    "claim_result", "list_papers", "load_paper", "mean_ci", "published_values", "reproduce_paper", "code_key",
+    "git_commit", "package_versions", "EXTRA_RESULTS", "EXTRAS_BEGIN", "EXTRAS_END", "append_history",
+    "claims_document", "link_extras", "metrics_document", "paper_markdown", "write_documents", "write_paper",
+    "write_report", "REPO", "Runner", "calibration_targets", "parameter_sources",
 ]
 
 
@@ -80,6 +96,7 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     its time, so this keeps both cores busy where a pool of simulations alone leaves one idle.  Every
     job is deterministic, so the results are the same bytes either way (tested)."""
     papers = papers or list_papers()
+    check_declarations(papers, log)  # a malformed declaration stops here, before any run
     runner = Runner(workers=workers, dask_scheduler=dask_scheduler, progress=progress)
     if cache_dir is not None:
         runner.cache_dir = Path(cache_dir)
@@ -89,13 +106,33 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     else:
         results = [reproduce_paper(p, runner, results_dir, quick, log) for p in papers]
     seconds = time.perf_counter() - t0
+    for res in results:
+        for c in res.claims:
+            if c.get("verdict") == "does not hold" and c.get("scope", "paper") == "paper" and not c.get("cause"):
+                log(f"warning: {res.paper}.{c['id']} does not hold and declares no cause ([claims.cause])")
     suffix = "_quick" if quick else ""
-    atomic_write_json(results_dir / f"metrics{suffix}.json", metrics_document(results, quick))
+    write_documents(results, results_dir, quick)
     atomic_write_json(results_dir / f"runs_manifest{suffix}.json", runner.manifest)
     write_report(results, results_dir, quick, runner, seconds)
     append_history(results_dir, results, quick, seconds)
     return results
 
+
+def check_declarations(papers: list[str], log: Callable[[str], None] = print) -> None:
+    """Load every paper's declaration (a :class:`~bench.spec.SpecError` on the first error: ``skidbench reproduce``
+    exits 2), log its warnings (claims not yet converted to the schema of :mod:`bench.reproduce.claims`), and warn
+    about a parameter source naming a claim no paper declares."""
+    declared = set()
+    for p in papers:
+        decl = load_paper(p)
+        declared |= {f"{decl['paper']}.{c['id']}" for c in decl.get("claims", [])}
+        for w in decl["_warnings"]:
+            log(f"warning: {w}")
+    every = papers == list_papers()
+    for claim, sources in sorted(calibration_targets().items()):
+        if every and claim not in declared:
+            log(f"warning: {', '.join(f'{s.file} [sources] {s.parameter}' for s in sources)} names claim "
+                f"'{claim}', which no paper declares")
 
 
 # Papers by their measured reproduction time (longest first), the order in which parallel jobs are

@@ -1,20 +1,55 @@
 """Claims and verdicts: the claim kinds (``ordering | ratio | trend | within | flag``), the metric ids a
 claim reads, the per-row verdict of a reproduced number against its published value and tolerance
-(``tolerance_abs`` or ``tolerance_rel``), and a claim's evaluation on the computed metrics.
+(``tolerance_abs`` or ``tolerance_rel``; a row of a table ``published_on = "real robot"`` gets the ratio
+reproduced / published and no verdict), a claim's evaluation on the computed metrics, the result that would
+make it fail (:func:`fails_if`), its verdict (:func:`verdict`) and the checks of a declared claim
+(:func:`check_claim`, run by :func:`bench.reproduce.paper.load_paper`).
+
+A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
+
+    id, text, source               # as before; source names section and page
+    quote = "..."                  # the paper's own words, <= 300 characters
+    headline = true                # a claim of the abstract / conclusions / main comparative result
+    scope = "paper" | "beyond"     # "beyond": our own check (NEES, no NaN, outages), never counted as the paper's
+    kind + its fields              # ordering: metrics, margin; ratio: num, den, op, value; trend: series,
+                                   # direction, tolerance; within: metric, value, tolerance_abs | tolerance_rel;
+                                   # flag: metric, expect
+    tolerance_origin = "..."       # where a tolerance, margin or threshold other than 1 comes from
+    fails_if = "..."               # optional; by default written by :func:`fails_if`
+    cause = {kind = "method" | "testbed" | "protocol" | "paper", text = "<= 300 characters"}
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
 inside the measurement's sampling error is not reported as holding.  Verdicts are computed from the numbers;
-nothing is written by hand.
+nothing is written by hand: "holds", "does not hold", "calibration target" (a testbed parameter was chosen to
+produce the outcome: :mod:`bench.reproduce.sources`), "not evaluated" (a metric is missing or NaN).
 """
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any, Mapping
 
-__all__ = ["CLAIM_KINDS", "claim_metric_ids", "row_verdict", "evaluate_claim"]
+from bench.spec import SpecError
+
+__all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "row_verdict",
+           "row_ratio", "evaluate_claim", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
+CAUSE_KINDS = ("method", "testbed", "protocol", "paper")
+SCOPES = ("paper", "beyond")
+TEXT_LIMIT = 300  # characters of a quote or a cause text (and of any table cell of the report)
+VERDICTS = ("holds", "does not hold", "calibration target", "not evaluated")
+RATIO_OPS = ("<", "<=", ">", ">=")
+DIRECTIONS = ("decreasing", "increasing")
+PUBLISHED_ON = ("real robot",)
+_KIND_FIELDS = {
+    "ordering": ("metrics", "margin"), "ratio": ("num", "den", "op", "value"),
+    "trend": ("series", "direction", "tolerance"), "within": ("metric", "value", "tolerance_abs", "tolerance_rel"),
+    "flag": ("metric", "expect"),
+}
+_COMMON_FIELDS = ("id", "text", "source", "quote", "headline", "scope", "kind", "tolerance_origin", "fails_if",
+                  "cause", "explain_if_fails")
 
 
 def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
@@ -33,7 +68,7 @@ def _fmt(x: Any) -> str:
     if isinstance(x, bool):
         return "yes" if x else "no"
     if isinstance(x, (int, float)):
-        if x is None or (isinstance(x, float) and math.isnan(x)):
+        if isinstance(x, float) and math.isnan(x):
             return "n/a"
         ax = abs(x)
         if ax != 0 and (ax < 1e-3 or ax >= 1e5):
@@ -42,12 +77,27 @@ def _fmt(x: Any) -> str:
     return "n/a" if x is None else str(x)
 
 
-def row_verdict(reproduced: float | None, row: Mapping[str, Any]) -> str:
+def _number(x: Any) -> float | None:
+    return None if x is None or not isinstance(x, (int, float)) or math.isnan(x) else float(x)
+
+
+def row_ratio(reproduced: float | None, published: float | None) -> float | None:
+    """reproduced / published (None when either is missing or the published value is 0)."""
+    rep, pub = _number(reproduced), _number(published)
+    return None if rep is None or pub is None or pub == 0 else rep / pub
+
+
+def row_verdict(reproduced: float | None, row: Mapping[str, Any], published_on: str | None = None) -> str:
+    """A table row's verdict: matches / differs within its tolerance; for a number published on a real robot
+    the ratio reproduced / published only (never scored)."""
     pub = row.get("published")
     if reproduced is None or (isinstance(reproduced, float) and math.isnan(reproduced)):
         return "not reproduced"
     if pub is None:
         return "—"
+    if published_on == "real robot":
+        r = row_ratio(reproduced, pub)
+        return f"ratio {_fmt(r)} (published on a real robot: not scored)"
     if "tolerance_abs" in row:
         ok = abs(reproduced - pub) <= row["tolerance_abs"]
         return f"{'matches' if ok else 'differs'} (|Δ| {'≤' if ok else '>'} {row['tolerance_abs']})"
@@ -58,54 +108,212 @@ def row_verdict(reproduced: float | None, row: Mapping[str, Any]) -> str:
     return "—"
 
 
+def _within_tolerance(claim: Mapping[str, Any]) -> tuple[float, str]:
+    """(absolute tolerance, its text) of a within claim."""
+    target = float(claim["value"])
+    if "tolerance_abs" in claim:
+        return float(claim["tolerance_abs"]), f"± {claim['tolerance_abs']}"
+    tol = float(claim.get("tolerance_rel", 0.1))
+    return tol * abs(target), f"± {tol:.0%}"
+
+
+def _labels(ids: list[str]) -> list[str]:
+    """Short names of metric ids: the last component, or as many trailing components as make them distinct
+    (``motion.gmean.mi_ukf.yaw_rms`` / ``motion.gmean.ukf_icr.yaw_rms`` -> ``mi_ukf.yaw_rms`` / ``ukf_icr.yaw_rms``)."""
+    parts = [m.split(".") for m in ids]
+    for n in range(1, max(len(p) for p in parts) + 1):
+        labels = [".".join(p[-n:]) for p in parts]
+        if len(set(labels)) == len(set(ids)):
+            return labels
+    return list(ids)
+
+
 def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tuple[bool | None, str]:
-    """(holds, measured-numbers text). ``None`` when a metric is missing."""
+    """(holds, measured-numbers text). ``None`` when a metric is missing or NaN."""
     def get(mid: str) -> float | None:
-        v = metrics.get(mid)
-        return None if v is None or (isinstance(v, float) and math.isnan(v)) else float(v)
+        return _number(metrics.get(mid))
 
     kind = claim["kind"]
+    if kind not in CLAIM_KINDS:
+        raise ValueError(f"unknown claim kind {kind}")
+    absent = [m for m in claim_metric_ids(claim) if get(m) is None]
+    if absent:
+        return None, f"no value (missing or NaN): {', '.join(absent)}"
     if kind == "ordering":  # a < b < ...; with "margin" (a metric, e.g. 2 standard errors): a + margin < b ...
         ids = claim["metrics"]
         vals = [get(m) for m in ids]
         margin = get(claim["margin"]) if "margin" in claim else 0.0
-        if any(v is None for v in vals) or margin is None:
-            return None, "missing metric"
         ok = all(a + margin < b for a, b in zip(vals, vals[1:]))
-        text = " < ".join(f"{m.split('.')[-1]} = {_fmt(v)}" for m, v in zip(ids, vals))
+        text = " < ".join(f"{name} = {_fmt(v)}" for name, v in zip(_labels(list(ids)), vals))
         if "margin" in claim:
             text += f" by more than {claim['margin'].split('.')[-1]} = {_fmt(margin)}"
         return ok, text
     if kind == "ratio":
         n, d = get(claim["num"]), get(claim["den"])
-        if n is None or d is None or d == 0:
-            return None, "missing metric"
+        if d == 0:
+            return None, f"{claim['den'].split('.')[-1]} = 0: no ratio"
         r = n / d
         op, val = claim.get("op", "<="), float(claim["value"])
         ok = {"<": r < val, "<=": r <= val, ">": r > val, ">=": r >= val}[op]
-        return ok, f"{claim['num'].split('.')[-1]} / {claim['den'].split('.')[-1]} = {_fmt(n)} / {_fmt(d)} = {_fmt(r)} (claim: {op} {val})"
+        num, den = _labels([claim["num"], claim["den"]])
+        return ok, f"{num} / {den} = {_fmt(n)} / {_fmt(d)} = {_fmt(r)} (claim: {op} {val})"
     if kind == "trend":
         vals = [get(m) for m in claim["series"]]
-        if any(v is None for v in vals):
-            return None, "missing metric"
         tol = float(claim.get("tolerance", 0.0))
         sign = -1 if claim.get("direction", "decreasing") == "decreasing" else 1
         ok = all(sign * (b - a) >= -tol for a, b in zip(vals, vals[1:])) and sign * (vals[-1] - vals[0]) > 0
         return ok, "series: " + ", ".join(_fmt(v) for v in vals) + f" ({claim.get('direction', 'decreasing')}, tolerance {tol})"
     if kind == "within":
         v = get(claim["metric"])
-        if v is None:
-            return None, "missing metric"
         target = float(claim["value"])
-        if "tolerance_abs" in claim:
-            ok = abs(v - target) <= claim["tolerance_abs"]
-            return ok, f"{_fmt(v)} vs {target} ± {claim['tolerance_abs']}"
-        tol = float(claim.get("tolerance_rel", 0.1))
-        ok = abs(v - target) <= tol * abs(target)
-        return ok, f"{_fmt(v)} vs {target} ± {tol:.0%}"
+        tol, tol_text = _within_tolerance(claim)
+        return abs(v - target) <= tol, f"{_fmt(v)} vs {target} {tol_text}"
     if kind == "flag":
         v = get(claim["metric"])
-        if v is None:
-            return None, "missing metric"
         return bool(v) == bool(claim.get("expect", True)), f"{claim['metric'].split('.')[-1]} = {_fmt(bool(v))}"
     raise ValueError(f"unknown claim kind {kind}")
+
+
+_NEGATED = {"<": ">=", "<=": ">", ">": "<=", ">=": "<"}
+
+
+def fails_if(claim: Mapping[str, Any]) -> str:
+    """The result that would make the claim fail, from its kind and numbers (a missing or NaN metric is
+    "not evaluated", never a failure)."""
+    kind = claim["kind"]
+    if kind == "ordering":
+        ids = list(claim["metrics"])
+        m = f" + {claim['margin']}" if "margin" in claim else ""
+        steps = [f"{a}{m} >= {b}" for a, b in zip(ids, ids[1:])]
+        return " or ".join(steps) + (" (at some step)" if len(steps) > 1 else "")
+    if kind == "ratio":
+        return f"{claim['num']} / {claim['den']} {_NEGATED[claim.get('op', '<=')]} {float(claim['value']):g}"
+    if kind == "trend":
+        series, tol = list(claim["series"]), float(claim.get("tolerance", 0.0))
+        decreasing = claim.get("direction", "decreasing") == "decreasing"
+        step = "rises" if decreasing else "falls"
+        end = f"{series[-1]} {'>=' if decreasing else '<='} {series[0]}"
+        by = f" by more than {tol:g}" if tol > 0 else ""
+        return f"a step of the series {step}{by}, or {end}"
+    if kind == "within":
+        target = float(claim["value"])
+        tol, _ = _within_tolerance(claim)
+        return f"{claim['metric']} outside [{target - tol:.6g}, {target + tol:.6g}]"
+    if kind == "flag":
+        return f"{claim['metric']} is {'false (0)' if claim.get('expect', True) else 'true (non-zero)'}"
+    raise ValueError(f"unknown claim kind {kind}")
+
+
+def verdict(holds: bool | None, calibration: list[str] | tuple[str, ...] = ()) -> str:
+    """The verdict of a claim: a missing metric is "not evaluated"; a claim a testbed parameter was chosen for
+    is a "calibration target" whatever its numbers; else "holds" / "does not hold"."""
+    if holds is None:
+        return "not evaluated"
+    if calibration:
+        return "calibration target"
+    return "holds" if holds else "does not hold"
+
+
+def needs_tolerance_origin(claim: Mapping[str, Any]) -> str | None:
+    """The field that makes a claim need a ``tolerance_origin`` (a tolerance, margin or a threshold other than a
+    plain comparison with 1), or None."""
+    kind = claim.get("kind")
+    if kind == "ordering" and "margin" in claim:
+        return "margin"
+    if kind == "ratio" and float(claim.get("value", 1.0)) != 1.0:
+        return "value"
+    if kind == "trend" and float(claim.get("tolerance", 0.0)) != 0.0:
+        return "tolerance"
+    if kind == "within":
+        for f in ("tolerance_abs", "tolerance_rel"):
+            if f in claim:
+                return f if float(claim[f]) != 0.0 else None
+        return "tolerance_rel"  # the implicit 10 %
+    return None
+
+
+def _short(text: Any) -> str:
+    s = str(text)
+    return s if len(s) <= 60 else f"{s[:57]}... ({len(s)} characters)"
+
+
+def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[str]) -> list[str]:
+    """Check one declared claim: raises :class:`SpecError` (file, ``claims.<id>.<field>``, value) on an error;
+    returns warnings.  Errors: a missing id, an unknown kind, scope, op, direction, cause kind (``implementation``
+    is refused: a defect is fixed, not reported) or ``published_on``, a quote or cause text over 300 characters, a
+    metric of an undeclared table, a headline claim of scope "beyond".  The requirements of the new schema (a
+    ``tolerance_origin`` beside a tolerance, an explicit tolerance of a within claim, known field names) are errors
+    for a claim that sets ``headline`` (converted) and warnings for one that does not yet."""
+    cid = c.get("id")
+    if not isinstance(cid, str) or not cid:
+        raise SpecError(path, f"claims[{i}].id", cid, "every claim needs an id (a string)")
+
+    def err(fieldname: str, value: Any, expected: str) -> SpecError:
+        return SpecError(path, f"claims.{cid}.{fieldname}", value, expected)
+
+    kind = c.get("kind")
+    if kind not in CLAIM_KINDS:
+        raise err("kind", kind, f"one of {CLAIM_KINDS}")
+    scope = c.get("scope", "paper")
+    if scope not in SCOPES:
+        raise err("scope", scope, f"one of {SCOPES}")
+    if "headline" in c and not isinstance(c["headline"], bool):
+        raise err("headline", c["headline"], "true or false")
+    if c.get("headline") and scope != "paper":
+        raise err("scope", scope, "a headline claim is the paper's: scope must be \"paper\"")
+    for f in ("text", "quote", "source", "tolerance_origin", "fails_if"):
+        if f in c and not isinstance(c[f], str):
+            raise err(f, c[f], "a string")
+    if len(c.get("quote", "")) > TEXT_LIMIT:
+        raise err("quote", _short(c["quote"]), f"at most {TEXT_LIMIT} characters (the paper's own words, verbatim)")
+    if "cause" in c:
+        cause = c["cause"]
+        if not isinstance(cause, Mapping):
+            raise err("cause", cause, "a table {kind = ..., text = ...}")
+        if cause.get("kind") not in CAUSE_KINDS:
+            raise err("cause.kind", cause.get("kind"), f"one of {CAUSE_KINDS} (a defect of ours is fixed, not a cause)")
+        text = cause.get("text")
+        if not isinstance(text, str) or not text.strip():
+            raise err("cause.text", text, "a non-empty string")
+        if len(text) > TEXT_LIMIT:
+            raise err("cause.text", _short(text), f"at most {TEXT_LIMIT} characters")
+    try:
+        ids = claim_metric_ids(c)
+    except KeyError as exc:
+        raise err(exc.args[0], None, f"a {kind} claim needs {_KIND_FIELDS[kind]}") from None
+    for mid in ids:
+        if not isinstance(mid, str) or mid.split(".")[0] not in table_ids:
+            raise SpecError(path, f"claims[{i}]", mid, f"claim '{cid}': a metric '<table>.<metric>' of a declared "
+                            f"table {table_ids}")
+    if kind == "ratio":
+        if c.get("op", "<=") not in RATIO_OPS:
+            raise err("op", c.get("op"), f"one of {RATIO_OPS}")
+        if not isinstance(c.get("value"), (int, float)) or isinstance(c.get("value"), bool):
+            raise err("value", c.get("value"), "a number")
+    if kind == "trend":
+        if c.get("direction", "decreasing") not in DIRECTIONS:
+            raise err("direction", c.get("direction"), f"one of {DIRECTIONS}")
+        if len(c["series"]) < 2:
+            raise err("series", c["series"], "at least two metrics")
+    if kind == "ordering" and len(c["metrics"]) < 2:
+        raise err("metrics", c["metrics"], "at least two metrics")
+    if kind == "within" and (not isinstance(c.get("value"), (int, float)) or isinstance(c.get("value"), bool)):
+        raise err("value", c.get("value"), "a number")
+
+    problems: list[tuple[str, Any, str]] = []
+    if scope == "paper" and "tolerance_origin" not in c and (f := needs_tolerance_origin(c)):
+        problems.append(("tolerance_origin", None, f"required beside '{f}' = {c.get(f)!r}: the seeds' 95 % interval "
+                         "(name its metric) or the spread the paper reports (quote where)"))
+    if kind == "within" and "tolerance_abs" not in c and "tolerance_rel" not in c:
+        problems.append(("tolerance_abs", None, "a within claim states its tolerance (tolerance_abs or tolerance_rel)"))
+    known = set(_COMMON_FIELDS) | set(_KIND_FIELDS[kind])
+    for f in sorted(set(c) - known):
+        problems.append((f, c[f], f"not a field of a {kind} claim ({sorted(known)})"))
+    if "headline" in c and problems:
+        raise err(*problems[0])
+    return [str(err(*p)) for p in problems]
+
+
+def check_published_on(path: str | Path, tab: Mapping[str, Any]) -> None:
+    if "published_on" in tab and tab["published_on"] not in PUBLISHED_ON:
+        raise SpecError(path, f"tables.{tab.get('id')}.published_on", tab["published_on"], f"one of {PUBLISHED_ON}")

@@ -16,14 +16,15 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bench.report.io import atomic_path
-from bench.reproduce.claims import CLAIM_KINDS, claim_metric_ids, evaluate_claim, row_verdict
+from bench.reproduce.claims import check_claim, check_published_on, evaluate_claim, fails_if, row_verdict, verdict
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import REPO, Runner
+from bench.reproduce.sources import calibration_targets
 from bench.spec import SCENARIO_DIR, SpecError
 
-__all__ = ["PAPERS_DIR", "RESULTS", "Context", "load_paper", "published_values", "mean_ci", "list_papers",
-           "PaperResult", "reproduce_paper"]
+__all__ = ["PAPERS_DIR", "RESULTS", "Context", "load_paper", "claim_result", "published_values", "mean_ci",
+           "list_papers", "PaperResult", "reproduce_paper"]
 
 PAPERS_DIR = SCENARIO_DIR / "papers"
 RESULTS = REPO / "results"
@@ -53,12 +54,16 @@ class Context:
         self.figures.append((str(Path(path).relative_to(self.out_dir.parent)), caption))
 
     def note(self, key: str, text: str) -> None:
-        """Attach an explanation to a table or claim id (shown beside it in the report)."""
+        """Attach an explanation to a table or claim id: a table's is printed under it; a claim's is shown whole in
+        ``claims_details.md`` and shortened (with a link) in the claims tables."""
         self.notes[key] = text
 
 
 # ----------------------------------------------------------------------------------- declarations
 def load_paper(name_or_path: str | Path) -> dict[str, Any]:
+    """A paper's declaration, checked (:func:`bench.reproduce.claims.check_claim`): an error is a :class:`SpecError`
+    naming the file, the field (``claims.<id>.<field>``) and the value; the new schema's requirements on a claim not
+    yet converted (no ``headline`` field) are collected in ``decl["_warnings"]``."""
     path = Path(name_or_path)
     if not path.suffix:
         path = PAPERS_DIR / f"{name_or_path}.toml"
@@ -76,18 +81,30 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     for i, tid in enumerate(table_ids):
         if table_ids.index(tid) != i:
             raise SpecError(path, f"tables[{i}].id", tid, "table ids must be unique")
+        check_published_on(path, decl["tables"][i])
     claim_ids: set[str] = set()
+    warnings: list[str] = []
     for i, c in enumerate(decl.get("claims", [])):
-        if c.get("kind") not in CLAIM_KINDS:
-            raise SpecError(path, f"claims[{i}].kind", c.get("kind"), f"one of {CLAIM_KINDS}")
-        if c.get("id") in claim_ids:
-            raise SpecError(path, f"claims[{i}].id", c.get("id"), "claim ids must be unique")
-        claim_ids.add(c.get("id"))
-        for mid in claim_metric_ids(c):
-            if mid.split(".")[0] not in table_ids:
-                raise SpecError(path, f"claims[{i}]", mid, f"a metric '<table>.<metric>' of a declared table {table_ids}")
+        warnings += check_claim(path, i, c, table_ids)
+        if c["id"] in claim_ids:
+            raise SpecError(path, f"claims.{c['id']}.id", c["id"], "claim ids must be unique")
+        claim_ids.add(c["id"])
+    decl["_warnings"] = warnings
     decl["_path"] = str(path)
     return decl
+
+
+def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str]) -> dict[str, Any]:
+    """A declared claim with its evaluation: holds (True / False / None), the measured numbers, the verdict (a claim a
+    testbed parameter was chosen for is a calibration target: :func:`bench.reproduce.sources.calibration_targets`),
+    the result that would fail it, and the note of the compute functions (``why``)."""
+    holds, text = evaluate_claim(c, metrics)
+    chosen = calibration_targets().get(f"{paper}.{c['id']}", [])
+    return {**c, "scope": c.get("scope", "paper"), "headline": bool(c.get("headline", False)),
+            "holds": holds, "measured": text, "verdict": verdict(holds, chosen),
+            "fails_if": c.get("fails_if") or fails_if(c), "fails_if_engine": fails_if(c),
+            "calibration": [{"parameter": s.name, "file": s.file, "ref": s.ref} for s in chosen],
+            "why": notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")}
 
 
 def published_values(paper: str, table_id: str) -> dict[str, float]:
@@ -180,12 +197,9 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
         rows = []
         for row in tab.get("rows", []):
             rep = got.get(row["metric"])
-            rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row)})
+            rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row, tab.get("published_on"))})
         tables.append({**tab, "rows_out": rows, "all_metrics": got})
-    claims = []
-    for c in decl.get("claims", []):
-        holds, text = evaluate_claim(c, metrics)
-        claims.append({**c, "holds": holds, "measured": text, "why": ctx.notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")})
+    claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])]
     served = sorted(set(runner.served))
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]

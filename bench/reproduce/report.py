@@ -1,41 +1,93 @@
-"""Writing the results: per paper its tables (markdown and CSV), claims and README (``results/<paper>/``);
-for a reproduce, ``metrics.json`` (the regression baseline), ``REPORT.md`` with the links to the extras'
-results, and one line of ``history.jsonl``.  Every file is written atomically.
+"""Writing the results: per paper its claims, tables (markdown and CSV) and README (``results/<paper>/``); for a
+reproduce, ``metrics.json`` (the regression baseline), ``claims.json`` (every claim's verdict), ``REPORT.md`` with
+the links to the extras' results, and one line of ``history.jsonl``.  Every file is written atomically.
+
+Layout (a reader starts from the verdicts, details are one link away):
+
+* ``REPORT.md``: ONE table of every paper's headline claims (paper | claim | verdict | cause | key numbers), then
+  a short summary per paper (headline claims holding / failing by cause / calibration targets, the other claims,
+  the checks beyond the paper apart) linking ``<paper>/README.md``; under 300 lines.
+* ``<paper>/README.md``: its headline claims, the other claims of the paper, the checks beyond the paper (each:
+  verdict, measured numbers, the result that would fail it, where its tolerance comes from, cause or note), then
+  the links to the per-table files and figures.
+* ``<paper>/claims_details.md``: per claim (anchor ``claim-<id>``) the quote, the numbers and the whole note of the
+  compute functions; ``<paper>/claims.md``: the three claims tables; ``<paper>/<table>.md|csv``: one per table.
+
+No table cell is longer than :data:`CELL_LIMIT` characters: a longer text is shortened and linked to its details.
 """
 from __future__ import annotations
 
 import json
+import re
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
-from bench.report.io import atomic_write_text, dumps_json
-from bench.reproduce.claims import _fmt
+from bench.report.io import atomic_write_json, atomic_write_text, dumps_json
+from bench.reproduce.claims import _fmt, row_ratio
 from bench.reproduce.provenance import git_commit, package_versions
 from bench.reproduce.runner import REPO, Runner
 
 if TYPE_CHECKING:
     from bench.reproduce.paper import PaperResult
 
-__all__ = ["paper_markdown", "write_paper", "metrics_document", "write_report", "EXTRA_RESULTS", "link_extras",
-           "append_history"]
+__all__ = ["CELL_LIMIT", "cell", "long_cells", "paper_markdown", "claims_details", "write_paper", "metrics_document",
+           "claims_document", "write_report", "EXTRA_RESULTS", "link_extras", "append_history"]
+
+CELL_LIMIT = 300
+DETAILS = "claims_details.md"
 
 
-def _cell(x: Any) -> str:
-    """Markdown table cell: pipes escaped, newlines folded."""
-    return str(x).replace("|", "\\|").replace("\n", " ")
+def cell(x: Any, more: str | None = None, limit: int = CELL_LIMIT) -> str:
+    """Markdown table cell of at most ``limit`` characters: pipes escaped, whitespace folded; a longer text is cut
+    at a sentence (or word) end and, with ``more``, followed by a link to the whole text."""
+    s = re.sub(r"\s+", " ", "" if x is None else str(x)).strip().replace("|", "\\|")
+    if len(s) <= limit:
+        return s
+    tail = f" … [more]({more})" if more else " …"
+    head = s[:limit - len(tail)]
+    stop = max(head.rfind(". "), head.rfind("; "))
+    if stop < len(head) // 2:
+        stop = head.rfind(" ")
+    if stop >= len(head) // 2:  # else one long word: a hard cut
+        head = head[:stop + 1]
+    if head.count("`") % 2:  # no code span left open
+        head = head[:head.rfind("`")]
+    return head.rstrip(" \\") + tail
+
+
+def long_cells(text: str, limit: int = CELL_LIMIT) -> list[str]:
+    """The cells of the markdown tables in ``text`` longer than ``limit`` characters."""
+    out = []
+    for line in text.splitlines():
+        if line.startswith("|"):
+            out += [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|")) if len(c.strip()) > limit]
+    return out
+
+
+# ------------------------------------------------------------------------------------------ tables
+def _real_robot(tab: Mapping[str, Any]) -> bool:
+    return tab.get("published_on") == "real robot"
 
 
 def _table_md(tab: Mapping[str, Any], notes: Mapping[str, str]) -> str:
     lines = [f"### {tab.get('title', tab['id'])}", "", f"Source: {tab.get('source', '')}", ""]
-    if tab["rows_out"]:
+    if _real_robot(tab):
+        lines += ["Published numbers measured on a real robot: shown beside ours as the ratio reproduced / "
+                  "published, never scored.", "",
+                  "| quantity | reproduced | published (real robot) | reproduced / published |", "|---|---|---|---|"]
+        for r in tab["rows_out"]:
+            lines.append(f"| {cell(r.get('label', r['metric']))} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))}"
+                         f" | {_fmt(row_ratio(r['reproduced'], r.get('published')))} |")
+    elif tab["rows_out"]:
         lines += ["| quantity | reproduced | published | verdict |", "|---|---|---|---|"]
         for r in tab["rows_out"]:
-            lines.append(f"| {_cell(r.get('label', r['metric']))} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))} | {r['verdict']} |")
+            lines.append(f"| {cell(r.get('label', r['metric']))} | {_fmt(r['reproduced'])} | {_fmt(r.get('published'))}"
+                         f" | {cell(r['verdict'])} |")
     else:
         lines += ["| metric | reproduced |", "|---|---|"]
         for k, v in tab["all_metrics"].items():
-            lines.append(f"| {k} | {_fmt(v)} |")
+            lines.append(f"| {cell(k)} | {cell(_fmt(v))} |")
     for text in (tab.get("note"), notes.get(tab["id"])):
         if text:
             lines += ["", f"> Note: {text.strip()}"]
@@ -58,27 +110,141 @@ def _table_csv(tab: Mapping[str, Any]) -> str:
     return buf.getvalue()
 
 
+def _table_summary(tab: Mapping[str, Any]) -> str:
+    rows = tab["rows_out"]
+    if _real_robot(tab):
+        return f"{len(rows)} numbers published on a real robot (ratios, not scored)"
+    if not rows:
+        return f"{len(tab['all_metrics'])} metrics"
+    match = sum(str(r["verdict"]).startswith("matches") for r in rows)
+    differ = sum(str(r["verdict"]).startswith("differs") for r in rows)
+    return f"{len(rows)} rows: {match} match, {differ} differ"
+
+
+# ------------------------------------------------------------------------------------------ claims
+_BOLD = {"holds": "**holds**", "does not hold": "**does not hold**"}
+
+
+def _groups(claims: Iterable[Mapping[str, Any]]) -> dict[str, list[Mapping[str, Any]]]:
+    """headline / other (claims of the paper) / beyond (our own checks), in declaration order."""
+    out: dict[str, list[Mapping[str, Any]]] = {"headline": [], "other": [], "beyond": []}
+    for c in claims:
+        key = "beyond" if c.get("scope", "paper") == "beyond" else ("headline" if c.get("headline") else "other")
+        out[key].append(c)
+    return out
+
+
+def _verdict(c: Mapping[str, Any]) -> str:
+    v = c.get("verdict") or {True: "holds", False: "does not hold", None: "not evaluated"}[c["holds"]]
+    return _BOLD.get(v, v)
+
+
+def _cause(c: Mapping[str, Any], more: str | None, with_note: bool = True) -> str:
+    """What explains the verdict: the chosen parameter of a calibration target, the cause of a failing claim
+    (or that none is given), else (``with_note``) the compute functions' note, shortened and linked."""
+    v = c.get("verdict")
+    if v == "calibration target":
+        names = ", ".join(p["parameter"] for p in c.get("calibration", []))
+        alone = {True: "holds", False: "does not hold"}.get(c["holds"], "not evaluated")
+        return cell(f"parameter chosen for this outcome: {names} (the numbers alone: {alone})", more)
+    if c["holds"] is False and c.get("cause"):
+        return cell(f"{c['cause']['kind']}: {c['cause']['text']}", more)
+    if c["holds"] is False and c.get("scope", "paper") == "paper":
+        note = f"; note: {c['why']}" if with_note and c.get("why") else ""
+        return cell(f"**no cause given**{note}", more)
+    if c["holds"] is None:
+        return cell(c.get("why", ""), more) if with_note else "—"
+    return cell(c.get("why", ""), more) if with_note else ""
+
+
+def _claims_table(claims: list[Mapping[str, Any]], details: str, beyond: bool = False) -> list[str]:
+    head = "check" if beyond else "claim"
+    lines = [f"| {head} | source | verdict | measured | fails if | tolerance from | cause / note |",
+             "|---|---|---|---|---|---|---|"]
+    for c in claims:
+        more = f"{details}#claim-{c['id']}"
+        lines.append(f"| {cell(c['text'], more)} | {cell(c.get('source', ''), more)} | {_verdict(c)} "
+                     f"| {cell(c['measured'], more)} | {cell(c.get('fails_if', ''), more)} "
+                     f"| {cell(c.get('tolerance_origin', '—' if _no_tolerance(c) else '**not stated**'), more)} "
+                     f"| {_cause(c, more)} |")
+    return lines
+
+
+def _no_tolerance(c: Mapping[str, Any]) -> bool:
+    from bench.reproduce.claims import needs_tolerance_origin
+
+    return c.get("scope", "paper") == "beyond" or needs_tolerance_origin(c) is None
+
+
+def _claims_sections(res: PaperResult, details: str) -> list[str]:
+    g = _groups(res.claims)
+    out = ["### Headline claims", ""]
+    out += _claims_table(g["headline"], details) if g["headline"] else ["No claim of this paper is marked headline."]
+    out += ["", "### Other claims of the paper", ""]
+    out += _claims_table(g["other"], details) if g["other"] else ["None."]
+    if g["beyond"]:
+        out += ["", "### Checks beyond the paper (ours; never counted among the paper's claims)", ""]
+        out += _claims_table(g["beyond"], details, beyond=True)
+    return out + [""]
+
+
 def _claims_md(res: PaperResult) -> str:
-    lines = ["| claim | source | verdict | measured | why |", "|---|---|---|---|---|"]
+    return "\n".join(_claims_sections(res, DETAILS)) + "\n"
+
+
+def claims_details(res: PaperResult) -> str:
+    """Every claim in full: quote, numbers, the result that would fail it, cause, calibration, the whole note."""
+    out = [f"# {res.paper}: claims in detail", "", "Back to the [paper's summary](README.md).", ""]
     for c in res.claims:
-        v = {True: "**holds**", False: "**does not hold**", None: "not evaluated"}[c["holds"]]
-        lines.append(f"| {_cell(c['text'])} | {_cell(c.get('source', ''))} | {v} | {_cell(c['measured'])} | {_cell(c.get('why', ''))} |")
-    return "\n".join(lines) + "\n"
+        scope = "check beyond the paper" if c.get("scope", "paper") == "beyond" else (
+            "headline claim" if c.get("headline") else "claim of the paper")
+        out += [f'<a id="claim-{c["id"]}"></a>', "", f"## {c['id']}: {c['text']}", "",
+                f"- {scope}, {c['kind']}; verdict: {_verdict(c)}", f"- source: {c.get('source', '—')}"]
+        if c.get("quote"):
+            out.append(f"- the paper: \"{c['quote']}\"")
+        out += [f"- measured: {c['measured']}", f"- fails if: {c.get('fails_if', '')}"]
+        if c.get("fails_if_engine") and c.get("fails_if_engine") != c.get("fails_if"):
+            out.append(f"- fails if (from the kind and numbers): {c['fails_if_engine']}")
+        if c.get("tolerance_origin"):
+            out.append(f"- tolerance from: {c['tolerance_origin']}")
+        if c.get("cause"):
+            out.append(f"- cause ({c['cause']['kind']}): {c['cause']['text']}")
+        for p in c.get("calibration", []):
+            out.append(f"- calibration target: {p['parameter']} ({p['file']}) was chosen for it: {p['ref']}")
+        if c.get("why"):
+            out += ["", c["why"].strip()]
+        out.append("")
+    return "\n".join(out)
+
+
+def _seeds_line(res: PaperResult) -> str:
+    seeds = res.info.get("seeds")
+    return (f"Seeds: {seeds}; {len(res.info.get('runs', []))} simulated runs (listed with their content hashes in "
+            "runs_manifest.json).") if seeds else ""
 
 
 def paper_markdown(res: PaperResult, link_prefix: str = "") -> str:
+    """``<paper>/README.md``: headline claims first, then the other claims, the checks beyond the paper, the
+    per-table files and the figures (``link_prefix``: from the README's folder to ``results/``)."""
     d = res.decl
-    out = [f"## {d.get('title', res.paper)}", "", f"*{d.get('citation', '')}*", ""]
+    out = [f"## {d.get('title', res.paper)}", ""] + ([f"*{d['citation']}*", ""] if d.get("citation") else [])
+    out += _claims_sections(res, DETAILS)
+    out += [f"Every claim in full (quote, numbers, notes): [{DETAILS}]({DETAILS}).", ""]
     if d.get("note"):
-        out += [f"> {d['note'].strip()}", ""]
+        out += ["### Setup", "", f"> {d['note'].strip()}", ""]
+    out += ["### Tables", ""]
     for tab in res.tables:
-        out.append(_table_md(tab, res.notes))
-    out += ["### Claims", "", _claims_md(res)]
+        src = f" ({tab['source']})" if tab.get("source") else ""
+        out.append(f"- [{tab.get('title', tab['id'])}]({tab['id']}.md){src} ([csv]({tab['id']}.csv)): "
+                   f"{_table_summary(tab)}")
+    out.append("")
     if res.figures:
         out += ["### Figures", ""]
         for path, caption in res.figures:
             out.append(f"- [{caption}]({link_prefix}{path})")
         out.append("")
+    if line := _seeds_line(res):
+        out += [line, ""]
     return "\n".join(out)
 
 
@@ -87,9 +253,11 @@ def write_paper(res: PaperResult, out_dir: Path) -> None:
         atomic_write_text(out_dir / f"{tab['id']}.md", _table_md(tab, res.notes))
         atomic_write_text(out_dir / f"{tab['id']}.csv", _table_csv(tab))
     atomic_write_text(out_dir / "claims.md", _claims_md(res))
+    atomic_write_text(out_dir / DETAILS, claims_details(res))
     atomic_write_text(out_dir / "README.md", paper_markdown(res, link_prefix="../"))
 
 
+# ------------------------------------------------------------------------------------------ documents
 def metrics_document(results: list[PaperResult], quick: bool, tolerances: Mapping[str, Any] | None = None) -> dict[str, Any]:
     metrics: dict[str, Any] = {}
     for res in results:
@@ -106,31 +274,83 @@ def metrics_document(results: list[PaperResult], quick: bool, tolerances: Mappin
     return {"quick": quick, "commit": git_commit(), "metrics": dict(sorted(metrics.items()))}
 
 
+def claims_document(results: list[PaperResult], quick: bool) -> dict[str, Any]:
+    """``claims.json``: every claim's verdict by ``<paper>.<claim id>`` (scope, headline, cause, calibration)."""
+    claims = {}
+    for res in results:
+        for c in res.claims:
+            claims[f"{res.paper}.{c['id']}"] = {
+                "verdict": c.get("verdict"), "holds": c["holds"], "scope": c.get("scope", "paper"),
+                "headline": bool(c.get("headline")), "kind": c["kind"], "measured": c["measured"],
+                "fails_if": c.get("fails_if"), "cause": c.get("cause") if c["holds"] is False else None,
+                "calibration": [p["parameter"] for p in c.get("calibration", [])],
+            }
+    return {"quick": quick, "commit": git_commit(), "claims": claims}
+
+
+def _counts(claims: list[Mapping[str, Any]], causes: bool = True) -> str:
+    """"holding 3; failing 2 (method 1, no cause given 1); calibration targets 1; not evaluated 1"."""
+    if not claims:
+        return "none"
+    v = [c.get("verdict") for c in claims]
+    parts = [f"holding {v.count('holds')}"]
+    failing = [c for c in claims if c.get("verdict") == "does not hold"]
+    by: dict[str, int] = {}
+    for c in failing:
+        k = c["cause"]["kind"] if c.get("cause") else "no cause given"
+        by[k] = by.get(k, 0) + 1
+    parts.append(f"failing {len(failing)}" + (f" ({', '.join(f'{k} {n}' for k, n in sorted(by.items()))})"
+                                             if failing and causes else ""))
+    for name in ("calibration target", "not evaluated"):
+        if v.count(name):
+            parts.append(f"{name}{'s' if name.endswith('target') else ''} {v.count(name)}")
+    return "; ".join(parts)
+
+
 def write_report(results: list[PaperResult], results_dir: Path, quick: bool, runner: Runner, seconds: float) -> Path:
     lines = [
         "# skidbench reproduction report", "",
-        f"Generated by `skidbench reproduce{' --quick' if quick else ''}` at commit `{git_commit()}`.",
-        f"Wall time {seconds:.1f} s; runs simulated {runner.stats['simulated']}, taken from the cache {runner.stats['cached']}.",
-        "Every number below is computed; verdicts compare it with the published value or claim. A claim that does",
-        "not hold in simulation is reported as such, with the measured numbers and the reason where known.", "",
-        "Package versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()), "",
-        "## Summary", "", "| paper | claims holding | claims not holding | time (s) |", "|---|---|---|---|",
+        f"Generated by `skidbench reproduce{' --quick' if quick else ''}` at commit `{git_commit()}`; wall time "
+        f"{seconds:.1f} s; runs simulated {runner.stats['simulated']}, taken from the cache {runner.stats['cached']}.",
+        "Package versions: " + ", ".join(f"{k} {v}" for k, v in package_versions().items()) + ".", "",
+        "Every verdict is computed from the numbers: **holds**, **does not hold** (with its cause: `method` the testbed "
+        "has the physics the claim rests on, `testbed` an effect it lacks, `protocol` our experiment differs, `paper` "
+        "the paper contradicts itself), *calibration target* (a testbed parameter was chosen to produce this outcome: "
+        "never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
+        "are listed apart, per paper.", "",
+        "## Headline claims", "", "| paper | claim | verdict | cause | key numbers |", "|---|---|---|---|---|",
     ]
     for res in results:
-        h = sum(c["holds"] is True for c in res.claims)
-        f = sum(c["holds"] is False for c in res.claims)
-        lines.append(f"| [{res.paper}](#{res.paper}) | {h} | {f} | {res.seconds:.1f} |")
-    lines.append("")
+        heads = _groups(res.claims)["headline"]
+        if not heads:
+            lines.append(f"| [{res.paper}]({res.paper}/README.md) | no claim marked headline | — | — | — |")
+        for c in heads:
+            more = f"{res.paper}/{DETAILS}#claim-{c['id']}"
+            lines.append(f"| [{res.paper}]({res.paper}/README.md) | {cell(c['text'], more)} | {_verdict(c)} "
+                         f"| {_cause(c, more, with_note=False)} | {cell(c['measured'], more)} |")
+    lines += ["", "## Per paper", ""]
     for res in results:
-        lines.append(f'<a id="{res.paper}"></a>')
-        lines.append(paper_markdown(res))
-        seeds = res.info.get("seeds")
-        if seeds:
-            lines.append(f"Seeds: {seeds}; {len(res.info.get('runs', []))} simulated runs "
-                         f"(listed with their content hashes in runs_manifest.json).\n")
+        g = _groups(res.claims)
+        lines += [f'<a id="{res.paper}"></a>', "",
+                  f"### [{res.paper}]({res.paper}/README.md): {cell(res.decl.get('title', res.paper))}", "",
+                  f"- headline claims ({len(g['headline'])}): {_counts(g['headline'])}",
+                  f"- other claims of the paper ({len(g['other'])}): {_counts(g['other'])}",
+                  f"- checks beyond the paper ({len(g['beyond'])}): {_counts(g['beyond'], causes=False)}"]
+        targets = [f"{c['id']} ({', '.join(p['parameter'] for p in c.get('calibration', []))})"
+                   for c in res.claims if c.get("verdict") == "calibration target"]
+        if targets:
+            lines.append(f"- calibration targets: {', '.join(targets)}")
+        lines += [f"- {len(res.tables)} tables, {len(res.figures)} figures, every claim in detail: "
+                  f"[{res.paper}/{DETAILS}]({res.paper}/{DETAILS}); computed in {res.seconds:.1f} s", ""]
     path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
     atomic_write_text(path, "\n".join(lines))
     return path
+
+
+def write_documents(results: list[PaperResult], results_dir: Path, quick: bool) -> None:
+    suffix = "_quick" if quick else ""
+    atomic_write_json(results_dir / f"metrics{suffix}.json", metrics_document(results, quick))
+    atomic_write_json(results_dir / f"claims{suffix}.json", claims_document(results, quick))
 
 
 EXTRA_RESULTS = (  # (file under results/, what it is): written by the extras of `reproduce --all`
@@ -145,7 +365,8 @@ EXTRAS_BEGIN, EXTRAS_END = "<!-- extras -->", "<!-- /extras -->"
 
 def link_extras(results_dir: Path, quick: bool) -> Path | None:
     """Add (or refresh) the section of REPORT.md that links the extras' results that exist; it sits
-    after the summary table, between two HTML comments, so that a rerun replaces it."""
+    after the headline table, before the per-paper summaries, between two HTML comments, so that a rerun
+    replaces it."""
     path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
     if not path.is_file():
         return None
@@ -162,6 +383,7 @@ def link_extras(results_dir: Path, quick: bool) -> Path | None:
         text = text[:at] + section + text[at:] if at >= 0 else text + "\n" + section
     atomic_write_text(path, text)
     return path
+
 
 def append_history(results_dir: Path, results: list[PaperResult], quick: bool, seconds: float) -> None:
     """One JSON line per reproduce: commit, date, metrics, wall time (read by the dashboard)."""

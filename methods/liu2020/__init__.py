@@ -62,6 +62,9 @@ Paper equation -> code (modules of methods.liu2020)
          outage .............................. ukf.LiuUkfParams.icr_hold_gnss_timeout / icr_hold_window,
                                                icr._icr_update_allowed, icr._icr_window_fit
     Table 2, Figs. 6-20, claims .............. repro (scenarios/papers/liu2020.toml)
+    abstract: "the traditional wheel slip/skid
+         model" (the ICR model's comparator) . dead_reckoning.SlipDr, fit_slip, slip_forward (repro only,
+                                               not a registered plugin)
 Not Liu's
     ICR held through an encoder dropout ...... inputs._encoder_fresh (ukf.run_liu_filter, dead_reckoning._dr_estimate)
     no interpolation across a sensor gap ..... inputs._within_sampling (dead_reckoning.fit_icr)
@@ -79,7 +82,7 @@ from methods.liu2020.consistent import (
     innovation_statistics,
     match_process_noise,
 )
-from methods.liu2020.dead_reckoning import EnDr, IcrDr, fit_icr
+from methods.liu2020.dead_reckoning import EnDr, IcrDr, SlipDr, fit_icr, fit_slip, slip_forward
 from methods.liu2020.gnss_bias import liu_fx_gnss_bias, liu_hx_gnss_bias
 from methods.liu2020.icr import icr_from_state, slip_rates
 from methods.liu2020.inputs import GAP_INTERVALS, PAPER, TIME_SLACK, Geometry, geometry
@@ -87,7 +90,7 @@ from methods.liu2020.model import STATE_NAMES, liu_fx, liu_hx
 from methods.liu2020.ukf import LiuUkfParams, MiUkf, UkfIcr, run_liu_filter
 
 __all__ = [
-    "EnDr", "IcrDr", "UkfIcr", "MiUkf", "LiuUkfParams", "Geometry", "geometry", "liu_fx", "liu_hx",
+    "EnDr", "IcrDr", "SlipDr", "fit_slip", "slip_forward", "UkfIcr", "MiUkf", "LiuUkfParams", "Geometry", "geometry", "liu_fx", "liu_hx",
     "fit_icr", "slip_rates", "icr_from_state", "run_liu_filter", "PAPER", "UkfIcrConsistent", "MiUkfConsistent",
     "identify_noise", "liu_fx_gnss_bias", "liu_hx_gnss_bias", "match_process_noise", "innovation_statistics",
     "STATE_NAMES", "GAP_INTERVALS", "TIME_SLACK",

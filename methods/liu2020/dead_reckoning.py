@@ -1,5 +1,6 @@
-"""Liu's two dead-reckoning estimators ("En-DR" and "ICR" of Figs. 6-20 and Table 2) and the constant-ICR
-fit that calibrates the second.
+"""Liu's two dead-reckoning estimators ("En-DR" and "ICR" of Figs. 6-20 and Table 2), the constant-ICR
+fit that calibrates the second, and the traditional wheel-slip model the paper compares the ICR model with
+(abstract: "the ICRs-based model operates more steady than the traditional wheel slip/skid model").
 
 Paper equation -> code
     (1), (8) at y_l = B/2, y_r = -B/2, x = 0, then (9)  no-slip DR ...... EnDr, _dr_estimate
@@ -7,6 +8,15 @@ Paper equation -> code
     (6)-(8) (equivalently (2), (3), (5)) fitted on GNSS  constant ICR ... fit_icr (IcrDr.calibrate)
     (9)  body -> world, integrated exactly on SE(2) ....................... bench.kinematics.integrate_se2
     (10) slip of the outputs .............................................. methods.liu2020.icr.slip_rates
+    traditional slip/skid model ([35], [36]): constant slip rates and
+         sideslip angle, fitted on GNSS like the ICR ...................... slip_forward, fit_slip, SlipDr
+
+* Slip model (the comparator of the abstract; the paper gives its definition only through (10) and
+  [35], [36]): each side's ground speed is ``v_i = (1 - s_i) r w_i`` with the slip rate
+  ``s_i = (r w_i - v_i)/(r w_i)`` (the repo convention of :func:`methods.liu2020.icr.slip_rates`),
+  ``v_x = (v_l + v_r)/2``, ``theta_dot = (v_r - v_l)/B`` and a sideslip angle ``beta`` ([36]):
+  ``v_y = v_x tan(beta)``; three constants (s_l, s_r, beta) against the ICR model's three (y_l, y_r, x),
+  fitted by :func:`fit_slip` with the residuals and loss of :func:`fit_icr` on the same calibration runs.
 
 * Frames: Liu's world rotation (9) is printed as ``[[cos, sin], [sin, -cos]]``, a reflection
   (det = -1); with y left and yaw CCW (ENU, DESIGN.md) the proper rotation is used
@@ -125,18 +135,21 @@ class IcrDr:
         return _dr_estimate(self.name, run, g, self.y_l, self.y_r, self.x_icr, info)
 
 
-def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -> tuple[float, float, float, dict]:
-    """Constant (y_l, y_r, x_icr) fitted to GNSS body velocities and gyro yaw rate (eqs. (6)-(8)).
+def slip_forward(v_l: np.ndarray, v_r: np.ndarray, s_l: float, s_r: float, beta: float, track: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body velocities (v_x, v_y, theta_dot) of the slip model from the tread speeds ``r w_l``, ``r w_r``:
+    side ground speeds ``(1 - s_i) r w_i``, their mean and difference over the track B, ``v_y = v_x tan(beta)``."""
+    gl, gr = (1.0 - s_l) * np.asarray(v_l, float), (1.0 - s_r) * np.asarray(v_r, float)
+    vx = 0.5 * (gl + gr)
+    return vx, vx * math.tan(beta), (gr - gl) / track
 
-    Residuals (m/s): v_x, v_y and ``B/2 * theta_dot``; soft-L1 loss; bounds y_l in (0, clamp],
-    y_r in [-clamp, 0), |x| <= clamp (the [-20, 20] of Sec. V-B-3).  The wheel speeds and the yaw rate
-    are interpolated to the GNSS times; a GNSS sample in a gap of either (a dropout: more than 1.5
-    sample intervals between the samples around it, :func:`_within_sampling`) or outside their span
-    is not used."""
-    from scipy.optimize import least_squares
 
+def _gnss_fit_samples(runs: Sequence[Run], min_speed: float) -> tuple[float, tuple[np.ndarray, ...]]:
+    """(track, (v_l, v_r, v_x, v_y, theta_dot)) of the moving GNSS samples of calibration runs: tread speeds
+    and gyro interpolated to the GNSS times, GNSS body velocity (world velocity rotated by the GNSS heading);
+    a GNSS sample in a gap of the encoders or the gyro (:func:`_within_sampling`) or outside their span is dropped."""
     if not runs:
-        raise ValueError("fit_icr: no calibration runs")
+        raise ValueError("fit: no calibration runs")
     vl, vr, vx, vy, wz, keep = [], [], [], [], [], []
     track = None
     for run in runs:
@@ -148,7 +161,7 @@ def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -
         gx, gy, gyaw = run["gnss_vx"], run["gnss_vy"], run["gnss_yaw"]
         rows = np.flatnonzero(np.isfinite(gx) & np.isfinite(gy) & np.isfinite(gyaw))
         if rows.size == 0:
-            raise RunError(run.where, "gnss_vx/gnss_vy/gnss_yaw", "no joint sample", "needed to fit the ICR")
+            raise RunError(run.where, "gnss_vx/gnss_vy/gnss_yaw", "no joint sample", "needed to fit the model")
         tg = run.t[rows]
         c, s = np.cos(gyaw[rows]), np.sin(gyaw[rows])
         vx.append(c * gx[rows] + s * gy[rows])
@@ -162,8 +175,79 @@ def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -
     vl_, vr_, vx_, vy_, wz_ = (np.concatenate(a) for a in (vl, vr, vx, vy, wz))
     moving = (np.maximum(np.abs(vl_), np.abs(vr_)) >= min_speed) & np.concatenate(keep)
     if moving.sum() < 10:
-        raise RunError(runs[0].where, "enc_wl/enc_wr", int(moving.sum()), "too few moving samples to fit the ICR")
-    vl_, vr_, vx_, vy_, wz_ = vl_[moving], vr_[moving], vx_[moving], vy_[moving], wz_[moving]
+        raise RunError(runs[0].where, "enc_wl/enc_wr", int(moving.sum()), "too few moving samples to fit the model")
+    assert track is not None
+    return track, tuple(a[moving] for a in (vl_, vr_, vx_, vy_, wz_))
+
+
+def fit_slip(runs: Sequence[Run], min_speed: float = 0.05, max_slip: float = 20.0
+             ) -> tuple[float, float, float, dict]:
+    """Constant slip rates (s_l, s_r) and sideslip angle beta of the slip model (:func:`slip_forward`)
+    fitted to the GNSS body velocities and gyro yaw rate of calibration runs, with the residuals, loss
+    and samples of :func:`fit_icr` (v_x, v_y, ``B/2 theta_dot``; soft-L1); bounds s_i in [-max_slip,
+    0.999], |beta| <= 1.5 rad."""
+    from scipy.optimize import least_squares
+
+    track, (vl_, vr_, vx_, vy_, wz_) = _gnss_fit_samples(runs, min_speed)
+    half = 0.5 * track
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        ex, ey, ew = slip_forward(vl_, vr_, p[0], p[1], p[2], track)
+        return np.concatenate((ex - vx_, ey - vy_, half * (ew - wz_)))
+
+    sol = least_squares(resid, x0=[0.0, 0.0, 0.0], bounds=([-max_slip, -max_slip, -1.5], [0.999, 0.999, 1.5]),
+                        loss="soft_l1", f_scale=0.05, x_scale=[0.1, 0.1, 0.1])
+    s_l, s_r, beta = (float(v) for v in sol.x)
+    rms = float(np.sqrt(np.mean(resid(sol.x) ** 2)))
+    return s_l, s_r, beta, {"fit_samples": int(vl_.size), "fit_rms": rms, "fit_status": int(sol.status)}
+
+
+@dataclass(frozen=True)
+class SlipDr:
+    """Dead reckoning with the traditional wheel-slip model (the comparator of Liu's abstract; not one of
+    the four estimators of Table 2): constant slip rates and sideslip angle (:func:`slip_forward`),
+    fitted by :meth:`calibrate` (:func:`fit_slip`), integrated with (9) from the first GNSS fix."""
+
+    s_l: float | None = None
+    s_r: float | None = None
+    beta: float | None = None
+    fit_info: Mapping[str, Any] = field(default_factory=dict, compare=False)
+
+    name: ClassVar[str] = "liu2020.slip_dr"
+    paper: ClassVar[str] = PAPER
+    requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+    calibration_requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE | GNSS_VEL | frozenset({"imu_gz"})
+
+    def calibrate(self, runs: Sequence[Run]) -> "SlipDr":
+        s_l, s_r, beta, info = fit_slip(runs)
+        return dataclasses.replace(self, s_l=s_l, s_r=s_r, beta=beta, fit_info=info)
+
+    def estimate(self, run: Run) -> Estimate:
+        _check_channels(run, self.requires, self.name)
+        if self.s_l is None or self.s_r is None or self.beta is None:
+            raise RuntimeError(f"{self.name}: slip parameters unknown; call calibrate(runs) or pass s_l, s_r, beta")
+        g = geometry(run)
+        t = run.t
+        v_l = g.wheel_radius * _interval_speed(run["enc_wl"])
+        v_r = g.wheel_radius * _interval_speed(run["enc_wr"])
+        vx, vy, wz = slip_forward(v_l, v_r, self.s_l, self.s_r, self.beta, g.track)
+        x0, y0, yaw0, _ = _initial_pose(run)
+        x, y, yaw = integrate_se2(t, vx, vy, wz, x0, y0, yaw0)
+        info = {"s_l": self.s_l, "s_r": self.s_r, "beta": self.beta, **dict(self.fit_info)}
+        return make_estimate(self.name, info, t=t, x=x, y=y, yaw=_wrap(yaw), vx=vx, vy=vy, wz=wz)
+
+
+def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -> tuple[float, float, float, dict]:
+    """Constant (y_l, y_r, x_icr) fitted to GNSS body velocities and gyro yaw rate (eqs. (6)-(8)).
+
+    Residuals (m/s): v_x, v_y and ``B/2 * theta_dot``; soft-L1 loss; bounds y_l in (0, clamp],
+    y_r in [-clamp, 0), |x| <= clamp (the [-20, 20] of Sec. V-B-3).  The wheel speeds and the yaw rate
+    are interpolated to the GNSS times; a GNSS sample in a gap of either (a dropout: more than 1.5
+    sample intervals between the samples around it, :func:`_within_sampling`) or outside their span
+    is not used."""
+    from scipy.optimize import least_squares
+
+    track, (vl_, vr_, vx_, vy_, wz_) = _gnss_fit_samples(runs, min_speed)
     half = 0.5 * track
 
     def resid(p: np.ndarray) -> np.ndarray:
@@ -174,4 +258,4 @@ def fit_icr(runs: Sequence[Run], min_speed: float = 0.05, clamp: float = 20.0) -
                         loss="soft_l1", f_scale=0.05, x_scale=[half, half, half])
     y_l, y_r, x_icr = (float(v) for v in sol.x)
     rms = float(np.sqrt(np.mean(resid(sol.x) ** 2)))
-    return y_l, y_r, x_icr, {"fit_samples": int(moving.sum()), "fit_rms": rms, "fit_status": int(sol.status)}
+    return y_l, y_r, x_icr, {"fit_samples": int(vl_.size), "fit_rms": rms, "fit_status": int(sol.status)}

@@ -30,6 +30,7 @@ Paper equation -> code
   Sec. IV-B default P3-AT model ................... p3at.P3AT_DEFAULT (alpha = 1, x_ICR = 0.3 m)
   Tables I, II (published parameters) ............. p3at.TABLE_I, p3at.TABLE_II
   Tables I-III, Fig. 6 on the testbed ............. repro (table1, table2, table3, table3_conditions)
+  Sec. IV-C, Fig. 6 over seeds (95 % intervals) ... seeds (indexes, validation)
   (6)-(7) with (13) on real DRIVE windows ......... windows.AsymmetricICR (end-pose least squares)
 
 Implementation choices the paper leaves open (documented, configurable)

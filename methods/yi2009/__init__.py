@@ -26,6 +26,7 @@ Map: paper equation -> code (module.function of this package)
     (10a)-(10e)  IMU kinematics (strapdown, Euler rates)  the EKF loop (prediction)
     (11)  v_Bz = 0 ...................................... measurement row 3
     (12)-(14)  v_Bx from encoders, sign-constrained slip  measurement row 1; (14) also slip.constrained_slip
+         (with the cases of Sec. III-C's sentence: w_L = w_R is the w_L <= w_R case for both wheels)
     (15)  v_By = (x_M - S) yaw_rate ..................... measurement row 2 (variant 3); windows.YiSGamma
     (16)-(17)  y = C^T V_I + w .......................... measurement model
     (18)-(19)  X(k) = X(k-1) + dT f(X(k-1), u(k-1)) ..... prediction

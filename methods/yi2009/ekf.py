@@ -17,19 +17,32 @@ How the paper estimates slip (Sec. III-C, IV-A)
     (10e) and the latest encoder speeds; the measurement at step k+1 uses lambda'(k) of (14) with
     the wheel speeds of step k+1.  (Using the prior of the same step instead would make (13)
     equal to the predicted velocity whenever (14) does not clip, i.e. a measurement with zero
-    innovation.)  Consequently the slip level is learnt only while wheel speeds change or when
-    (14) clips; at constant wheel speed (13) holds the slip ratio, a property of the paper's design.
+    innovation.)  Consequently the encoder speeds enter (13) only through the sign bounds of (14): the
+    side whose slip (14) sets to 0 contributes its r w; where (14) keeps the fed-back slip, the row
+    re-measures the filter's own previous velocity (scaled by the change of that wheel's speed).
+    (14) is applied with the cases of the sentence that derives it (Sec. III-C, p. ~1090: "if
+    w_L <= w_R ... lambda_L <= 0 and lambda_R >= 0"; "if w_L > w_R, then lambda_L > 0 and
+    lambda_R < 0"): at equal wheel speeds the left side keeps only braking slip and the right only
+    traction slip (:func:`methods.yi2009.slip.constrained_slip`), so on a straight line one wheel's
+    encoder speed always enters (13).  The printed (14) puts w_L = w_R in its ">=" case for lambda'_L
+    (traction on both sides): v_x is then bounded from above only.  On the testbed's straight line
+    (30/30 rpm, both encoders 8 whole counts per sample) the speed fell behind the wheels after the
+    start from rest (a pitch error of -0.035 rad taken up in the spin-up), the slip (6) reached the +1
+    clip, (13) measured v_x = 0 and held it: slip at the clip 32 % of the time after 1 s, scheme 3
+    position RMS 2.85 m on the 5.4 m path (with the sentence's cases: 0 % and 0.006 m, seed 0).
 
-Measured behaviour of this design (synthetic runs of tests/methods/yi2009/test_ekf.py)
-    Because (13) with fed-back slip re-measures the filter's own previous velocity, schemes 2 and 3
-    have no absolute speed reference except the sign bounds of (14): their speed follows the IMU
-    (pitch error -> gravity leakage) inside those bounds, and with a noisy gyro or coarse encoders
-    scheme 2 can be worse than scheme 1.  Schemes 1 and 2 leave v_By and the roll angle unobserved;
-    on a straight line the roll estimate wanders and the lateral position drifts.  In scheme 3 the
-    unanchored speed couples with the attitude corrections of the v_y/v_z rows: even on noise-free
-    data a steady turn slowly drifts to the (14) bound (not with roll/pitch frozen, not in scheme 2),
-    which biases its slip estimates.  With good sensors and 10 % net slip the ordering of Fig. 5
-    (3 <= 2 <= 1) is reproduced on turning paths.
+Measured behaviour of this design (the testbed paths of the reproduction, tests/methods/yi2009/test_ekf.py)
+    Inside the bounds of (14) schemes 2 and 3 have no absolute speed reference: their speed follows
+    the IMU (pitch error -> gravity leakage) between the bounds, which on a turn are two-sided (inner
+    tread >= its encoder speed, outer <= its: about +-13 % of the speed on the 80/40 rpm circle).
+    Schemes 1 and 2 leave v_By and the roll angle unobserved (no row measures them; Sec. IV-B assumes
+    the attitude known): the roll estimate wanders inside its initial uncertainty (P0 0.02 rad: no
+    levelling when a run starts moving) and gravity leaks into the lateral velocity, g droll, which
+    integrates twice into the position, so on the 20 s straight line their lateral error dominates
+    (metres), as the paper reports for scheme 1 ("the first scheme has a large error").  The v_z row's
+    roll column -v_By (25), evaluated at the drifted estimate, reports roll information that does not
+    exist, and the roll error grows beyond the gyro's own integration error.  With good sensors and
+    10 % net slip the ordering of Fig. 5 (3 <= 2 <= 1) is reproduced on turning paths.
 
 Variants (Fig. 5, Sec. V-C)
     1: v_x (13) without slip (lambda' = 0) and v_z (11);  2: v_x with slip feedback (13)-(14) and

@@ -111,8 +111,9 @@ def _smoothness_figure(path: Any, ev: Evaluation, out: Mapping[str, float]) -> N
     wz = np.array([out[f"sweep_r{r:g}.abs_wz"] for r in rs])
     sd = np.array([out[f"sweep_r{r:g}.icr_std"] for r in rs])
     a.loglog(wz, sd, "o-", color=COLORS["mi_ukf"], label="sweep: scenario 2 at R 17, 8, 4, 2 m")
-    for k, mk in (("s2", "s"), ("s3", "^")):
-        a.loglog(out[f"{k}.abs_wz"], out[f"{k}.icr_std"], mk, ms=10, mfc="none", color="k", label=f"{k}")
+    for k, mk in (("s1_liu", "D"), ("s2", "s"), ("s3", "^")):
+        a.loglog(out[f"{k}.abs_wz"], out[f"{k}.icr_std"], mk, ms=10, mfc="none", color="k",
+                 label="s1 as Liu drove it (R 63 m)" if k == "s1_liu" else k)
     a.loglog(wz, sd[0] * wz[0] / wz, ":", color="0.5", label="~ 1/|yaw rate|")
     a.set(xlabel="mean |yaw rate| [rad/s]", ylabel="std of y_l, y_r [m]", title="MI-UKF ICR smoothness")
     a.legend(fontsize=8)

@@ -28,11 +28,49 @@ from methods.liu2020.repro.evaluation import (
     _evaluate,
     _heading_excess,
     _state_error,
+    mean_ci,
     published_values,
 )
 from methods.liu2020.repro.figures import _heading_figure, _outage_figure, _scenario_figure, _smoothness_figure
 
 # ------------------------------------------------------------------------------------------ Table 2
+def _half_width(values: Any) -> float:
+    """Half-width of the two-sided 95 % Student-t interval of the mean of per-seed values (NaN for < 2)."""
+    m, lo, hi = mean_ci(values, SETTINGS.confidence)
+    return 0.5 * (hi - lo)
+
+
+def _per_seed(ev: Evaluation, metric: str) -> dict[str, dict[str, np.ndarray]]:
+    """scenario -> method -> per-seed scores of ``metric``."""
+    return {k: {m: np.array([s[metric] for s in sr.scores[m]]) for m in sr.scores} for k, sr in ev.scenarios.items()}
+
+
+def _gmean_per_seed(per: Mapping[str, Mapping[str, np.ndarray]], m: str, keys: Any = SCENARIOS) -> np.ndarray:
+    """Per-seed geometric mean over scenarios of one method's per-seed scores."""
+    return np.exp(np.mean([np.log(np.maximum(per[k][m], 1e-12)) for k in keys], axis=0))
+
+
+def _paired_margins(ev: Evaluation, metric: str) -> dict[str, float]:
+    """The ordering claims' margins: the 95 % half-width of the per-seed paired difference of two methods'
+    ``metric`` (seeds share the testbed physics, so the paired difference carries the sensor noise only)."""
+    out: dict[str, float] = {}
+    per = _per_seed(ev, metric)
+    for k, v in per.items():
+        out[f"{k}.margin.icr_en_dr"] = _half_width(v["en_dr"] - v["icr"])
+        out[f"{k}.margin.ukf_icr_icr"] = _half_width(v["icr"] - v["ukf_icr"])
+        out[f"{k}.margin.mi_ukf_ukf_icr"] = _half_width(v["ukf_icr"] - v["mi_ukf"])
+    # Sec. V-B-1, scenario 1: the gain of the multi-innovation (UKF+ICR - MI-UKF) against the ICR model's (En-DR - ICR)
+    s1 = per["s1"]
+    g_mi, g_icr = s1["ukf_icr"] - s1["mi_ukf"], s1["en_dr"] - s1["icr"]
+    out["s1.gain_mi"], out["s1.gain_icr"] = float(np.mean(g_mi)), float(np.mean(g_icr))
+    out["s1.margin.gains"] = _half_width(g_icr - g_mi)
+    # turning scenarios (s2, s3): the ICR model against the slip model, geometric means per seed
+    turn = {m: _gmean_per_seed(per, m, ("s2", "s3")) for m in ("icr", "slip_dr")}
+    out["turning.icr"], out["turning.slip_dr"] = (float(np.mean(turn[m])) for m in ("icr", "slip_dr"))
+    out["turning.margin.icr_slip"] = _half_width(turn["slip_dr"] - turn["icr"])
+    return out
+
+
 def _table2(ctx: Any, metric: str, reference: str, filename: str) -> dict[str, float]:
     ev = _evaluate(ctx)
     out: dict[str, float] = {}
@@ -42,28 +80,39 @@ def _table2(ctx: Any, metric: str, reference: str, filename: str) -> dict[str, f
              "| scenario | method | mean | 95% interval | published |", "|---|---|---|---|---|"]
     published = published_values("table2")
     for k, sr in ev.scenarios.items():
-        for m in (*METHODS, "icr_samepath"):
+        for m in (*METHODS, "icr_samepath", "slip_dr"):
             mean, lo, hi = sr.mean(m, metric)
             out[f"{k}.{m}"], out[f"{k}.{m}.ci_lo"], out[f"{k}.{m}.ci_hi"] = mean, lo, hi
-            label = LABELS.get(m, "ICR (calibrated on the same scenario, seed 100)")
+            label = LABELS.get(m, {"icr_samepath": "ICR (calibrated on the same scenario, seed 100)",
+                                   "slip_dr": "slip model DR (beside the paper's four)"}.get(m, m))
             pub = published.get(f"{k}.{m}")
             lines.append(f"| {k} | {label} | {mean:.4g} | [{lo:.4g}, {hi:.4g}] | {'' if pub is None else pub} |")
     for m in METHODS:
         out[f"gmean.{m}"] = float(np.exp(np.mean([np.log(out[f"{k}.{m}"]) for k in ev.scenarios])))
+    out.update(_paired_margins(ev, metric))
     lines += ["", f"ICR method calibrated on scenarios/liu_calib.toml seed {SETTINGS.calib_seed}: "
-              f"y_l = {ev.calib_icr[0]:.3f} m, y_r = {ev.calib_icr[1]:.3f} m, x = {ev.calib_icr[2]:.3f} m."]
+              f"y_l = {ev.calib_icr[0]:.3f} m, y_r = {ev.calib_icr[1]:.3f} m, x = {ev.calib_icr[2]:.3f} m; slip model on "
+              f"the same run: s_l = {ev.slip_info['s_l']:.4f}, s_r = {ev.slip_info['s_r']:.4f}, "
+              f"beta = {ev.slip_info['beta']:.4f} rad (fit RMS {ev.slip_info['fit_rms']:.3f} m/s against "
+              f"{ev.calib_info.get('fit_rms', math.nan):.3f} m/s for the ICR).",
+              "", "Margins of the ordering claims: 95% half-width of the per-seed paired difference (*.margin.*)."]
     atomic_write_text(ctx.out_dir / filename, "\n".join(lines) + "\n")
     return out
 
 
 def table2(ctx: Any) -> dict[str, float]:
-    """Liu Table 2 against the testbed truth; also the scenario figures and the Table 2 claim notes."""
+    """Liu Table 2 against the testbed truth; also the GNSS-drift-free variant (Liu's protocol for the GNSS,
+    Sec. IV-C), the scenario figures and the Table 2 claim notes."""
     ev = _evaluate(ctx)
     out = _table2(ctx, "rms", "the testbed truth (geometric centre)", "table2_intervals.md")
     out["calib.y_l"], out["calib.y_r"], out["calib.x_icr"] = ev.calib_icr
     for k, sr in ev.scenarios.items():
         out[f"{k}.samepath.y_l"], out[f"{k}.samepath.y_r"], out[f"{k}.samepath.x_icr"] = sr.samepath_icr
         out[f"{k}.final.mi_ukf"] = sr.mean("mi_ukf", "final")[0]
+        for f in FILTERS:
+            out[f"nodrift.{k}.{f}"] = float(np.mean(ev.nodrift[k][f]))
+    for f in FILTERS:
+        out[f"nodrift.gmean.{f}"] = float(np.exp(np.mean([np.log(out[f"nodrift.{k}.{f}"]) for k in ev.scenarios])))
     _table2_notes(ctx, ev, out)
     for i, (k, sr) in enumerate(ev.scenarios.items(), start=1):
         path = ctx.out_dir / f"liu2020_scenario{i}.png"
@@ -76,49 +125,71 @@ def table2(ctx: Any) -> dict[str, float]:
 _FIGS = {"s1": "6-10", "s2": "11-15", "s3": "16-20"}
 
 
+def _ratios(out: Mapping[str, float], a: str, b: str, prefix: str = "") -> str:
+    return ", ".join(f"{k} {out[f'{prefix}{k}.{a}'] / out[f'{prefix}{k}.{b}']:.3f}" for k in SCENARIOS)
+
+
 def _table2_notes(ctx: Any, ev: Evaluation, out: Mapping[str, float]) -> None:
     s1 = ev.scenarios["s1"]
-    r1 = out["s1.icr"] / out["s1.en_dr"]
-    ctx.note("icr_vs_endr_s1", (
-        f"Ratio {r1:.3f}. Testbed scenario 1 has no steady slip (truth mean |slip| {s1.truth_stats['abs_slip']:.4f}, "
-        f"mean |yaw rate| {s1.truth_stats['abs_wz']:.1e} rad/s: a symmetric robot on flat uniform ground drives a "
-        "straight line). With w_l = w_r the ICR model gives the same v_x and zero yaw rate as the no-slip model, so ICR "
-        "and En-DR coincide; both errors come from the start pose taken from the first GNSS fix (0.3 m initial drift, "
-        "heading noise) and the short acceleration slip. Liu's robot turned from heading 1.18 to 0.67 rad on uneven "
-        "ground (Sec. V-B-1), slip the testbed does not have."))
-    for k in ("s2", "s3"):
-        sr = ev.scenarios[k]
-        ts = sr.truth_stats
-        r = out[f"{k}.icr"] / out[f"{k}.en_dr"]
-        rs = out[f"{k}.icr_samepath"] / out[f"{k}.en_dr"]
-        ctx.note(f"icr_vs_endr_{k}", (
-            f"Ratio {r:.3f} with the ICR calibrated on liu_calib (y_l, y_r, x) = ({ev.calib_icr[0]:.3f}, "
-            f"{ev.calib_icr[1]:.3f}, {ev.calib_icr[2]:.3f}) m; steady truth ICR of this scenario ({ts['y_l']:.3f}, "
-            f"{ts['y_r']:.3f}, {ts['x_icr']:.3f}) m. Calibrated on another seed of the same scenario the ratio is {rs:.3f}."))
-    ratios = {k: out[f"{k}.mi_ukf"] / out[f"{k}.ukf_icr"] for k in ev.scenarios}
     pub = published_values("table2")
+    ctx.note("icr_vs_endr", "ICR / En-DR per scenario: " + _ratios(out, "icr", "en_dr") + " (published "
+             + ", ".join(f"{k} {pub[f'{k}.icr'] / pub[f'{k}.en_dr']:.3f}" for k in SCENARIOS) + ").")
+    ctx.note("icr_vs_endr_s1", (
+        f"ICR / En-DR {out['s1.icr'] / out['s1.en_dr']:.3f}. The testbed straight has no slip (truth mean |slip| "
+        f"{s1.truth_stats['abs_slip']:.1e}, mean |yaw rate| {s1.truth_stats['abs_wz']:.1e} rad/s): with w_l = w_r "
+        "the ICR model (8) gives the no-slip velocities, so ICR and En-DR coincide; both errors are the start pose "
+        "from the first GNSS fix."))
+    for k in ("s2", "s3"):
+        ts = ev.scenarios[k].truth_stats
+        ctx.note(f"icr_vs_endr_{k}", (
+            f"ICR / En-DR {out[f'{k}.icr'] / out[f'{k}.en_dr']:.3f} with the ICR of liu_calib ({ev.calib_icr[0]:.3f}, "
+            f"{ev.calib_icr[1]:.3f}, {ev.calib_icr[2]:.3f}) m; steady truth ICR here ({ts['y_l']:.3f}, {ts['y_r']:.3f}, "
+            f"{ts['x_icr']:.3f}) m; calibrated on the same scenario (seed 100): "
+            f"{out[f'{k}.icr_samepath'] / out[f'{k}.en_dr']:.3f}."))
     gn = {k: sr.mean("mi_ukf", "rms_gnss")[0] / sr.mean("ukf_icr", "rms_gnss")[0] for k, sr in ev.scenarios.items()}
-    ctx.note("mi_vs_ukf", "Per scenario MI-UKF / UKF+ICR against truth: " + ", ".join(
-        f"{k} {ratios[k]:.3f} (published {pub[f'{k}.mi_ukf'] / pub[f'{k}.ukf_icr']:.3f})" for k in ev.scenarios)
-        + "; against the GNSS (Liu's reference): " + ", ".join(f"{k} {gn[k]:.3f}" for k in ev.scenarios)
-        + ". Against truth both filters' error is mostly the GNSS error they follow (GNSS RMS vs truth "
-        + ", ".join(f"{k} {ev.scenarios[k].truth_stats['gnss_err_rms']:.3f} m" for k in ev.scenarios)
-        + "): the MI-UKF tracks the GNSS fixes more tightly, which shows as a gain against the GNSS and almost none "
-          "against truth.")
-    ctx.note("mi_vs_ukf_gnss", "Per scenario MI-UKF / UKF+ICR against the GNSS: " + ", ".join(
-        f"{k} {gn[k]:.3f} (published {pub[f'{k}.mi_ukf'] / pub[f'{k}.ukf_icr']:.3f})" for k in ev.scenarios) + ".")
-    order = ("mi_ukf", "ukf_icr", "icr")
-    for k in ev.scenarios:
-        pairs = [(a, b, out[f"{k}.{a}"] / out[f"{k}.{b}"]) for a, b in zip(order, order[1:])]
-        ci = ", ".join(f"{LABELS[m]} [{out[f'{k}.{m}.ci_lo']:.4g}, {out[f'{k}.{m}.ci_hi']:.4g}]" for m in order[:2])
-        ctx.note(f"order_{k}", f"95% intervals {ci}. Ratios " + ", ".join(f"{LABELS[a]}/{LABELS[b]} {r:.3f}" for a, b, r in pairs) + (
-            "; En-DR / ICR: see icr_vs_endr_" + k + "." if k != "s1" else
-            "; ICR = En-DR on the slip-free straight path (icr_vs_endr_s1)."))
+    ctx.note("mi_vs_ukf", (
+        "MI-UKF / UKF+ICR against truth: " + _ratios(out, "mi_ukf", "ukf_icr") + " (published "
+        + ", ".join(f"{k} {pub[f'{k}.mi_ukf'] / pub[f'{k}.ukf_icr']:.3f}" for k in SCENARIOS) + "); GNSS error vs truth "
+        + ", ".join(f"{k} {ev.scenarios[k].truth_stats['gnss_err_rms']:.3f} m" for k in SCENARIOS)
+        + ", followed by both filters; with the drift removed (mi_vs_ukf_nodrift): " + _ratios(out, "mi_ukf", "ukf_icr", "nodrift.")
+        + "; against the GNSS: " + ", ".join(f"{k} {gn[k]:.3f}" for k in SCENARIOS) + "."))
+    ctx.note("mi_vs_ukf_gnss", "MI-UKF / UKF+ICR against the GNSS: " + ", ".join(f"{k} {gn[k]:.3f}" for k in SCENARIOS) + ".")
+    ctx.note("mi_vs_ukf_nodrift", (
+        "Scored scenarios with the testbed GNSS initial drift set to 0 (Liu removes the zero drift before moving, "
+        "Sec. IV-C, Figs. 3-4); MI-UKF / UKF+ICR against truth: " + _ratios(out, "mi_ukf", "ukf_icr", "nodrift.") + "; RMS "
+        + ", ".join(f"{k} {out[f'nodrift.{k}.ukf_icr']:.3f} / {out[f'nodrift.{k}.mi_ukf']:.3f} m" for k in SCENARIOS) + "."))
+    for k in SCENARIOS:
+        ctx.note(f"order_{k}", (
+            f"MI-UKF / UKF+ICR {out[f'{k}.mi_ukf'] / out[f'{k}.ukf_icr']:.3f}, UKF+ICR / ICR "
+            f"{out[f'{k}.ukf_icr'] / out[f'{k}.icr']:.3f}; margin {out[f'{k}.margin.ukf_icr_icr']:.3g} m (95 % half-width "
+            f"of the per-seed paired difference, {len(ev.seeds)} seeds)."))
+    ctx.note("s1_mi_gain_below_icr_gain", (
+        f"Scenario 1: MI-UKF gain over UKF+ICR {out['s1.gain_mi']:.4f} m, ICR gain over En-DR {out['s1.gain_icr']:.4f} m "
+        f"(published {pub['s1.ukf_icr'] - pub['s1.mi_ukf']:.3f} and {pub['s1.en_dr'] - pub['s1.icr']:.3f} m)."))
+    ctx.note("icr_steadier_than_slip", (
+        f"Dead reckoning on s2, s3 with constants fitted on liu_calib: ICR {out['s2.icr']:.3f}, {out['s3.icr']:.3f} m; "
+        f"slip model (s_l {ev.slip_info['s_l']:.3f}, s_r {ev.slip_info['s_r']:.3f}, beta {ev.slip_info['beta']:.3f} rad) "
+        f"{out['s2.slip_dr']:.3f}, {out['s3.slip_dr']:.3f} m; En-DR {out['s2.en_dr']:.3f}, {out['s3.en_dr']:.3f} m. Per-side "
+        "slip changes sign with the turn direction, the ICR does not. Within one steady turn the MI-UKF's std/|mean| of "
+        "y_l, y_r against s_l, s_r: " + ", ".join(
+            f"{k} {np.mean([st['cv_icr'] for st in ev.scenarios[k].icr_stats['mi_ukf']]):.3f} / "
+            f"{np.mean([st['cv_slip'] for st in ev.scenarios[k].icr_stats['mi_ukf']]):.3f}" for k in ("s2", "s3"))
+        + " (the same state: their ratio is |y_l - B/2| / |y_l| by construction, so it is not scored)."))
 
 
 def table2_gnss(ctx: Any) -> dict[str, float]:
-    """Liu Table 2 with the GNSS position as reference (as the paper)."""
-    return _table2(ctx, "rms_gnss", "the GNSS position (as Liu)", "table2_gnss_intervals.md")
+    """Liu Table 2 with the GNSS position as reference (as the paper); also the largest MI-UKF - GNSS distance
+    of scenario 2 (Sec. V-C-1: "within 1m")."""
+    ev = _evaluate(ctx)
+    out = _table2(ctx, "rms_gnss", "the GNSS position (as Liu)", "table2_gnss_intervals.md")
+    for k, sr in ev.scenarios.items():
+        for m in METHODS:
+            out[f"{k}.{m}.max_gnss"] = float(max(sc["max_gnss"] for sc in sr.scores[m]))
+    ctx.note("mi_within_1m_s2", (
+        f"Largest distance MI-UKF - GNSS over the run, worst seed: s2 {out['s2.mi_ukf.max_gnss']:.3f} m (UKF+ICR "
+        f"{out['s2.ukf_icr.max_gnss']:.3f}, ICR {out['s2.icr.max_gnss']:.3f}, En-DR {out['s2.en_dr.max_gnss']:.3f} m); "
+        f"{ev.scenarios['s2'].run0.t[-1]:.0f} s, {abs(ev.scenarios['s2'].truth_stats['vx']) * ev.scenarios['s2'].run0.t[-1]:.0f} m."))
+    return out
 
 
 # ------------------------------------------------------------------------------------------ motion
@@ -126,7 +197,7 @@ def motion(ctx: Any) -> dict[str, float]:
     """Heading and body-velocity RMS against truth per scenario and method (Figs. 7-8, 12-13, 17-18)."""
     ev = _evaluate(ctx)
     out: dict[str, float] = {}
-    keys = ("yaw_rms", "vx_rms", "vy_rms", "wz_rms", "v_rms")
+    keys = ("yaw_rms", "vx_rms", "vy_rms", "wz_rms", "v_rms", "v_rms_gnss")
     for k, sr in ev.scenarios.items():
         for m in METHODS:
             for q in keys:
@@ -134,49 +205,82 @@ def motion(ctx: Any) -> dict[str, float]:
     for m in METHODS:
         for q in keys:
             out[f"gmean.{m}.{q}"] = float(np.exp(np.mean([np.log(max(out[f"{k}.{m}.{q}"], 1e-12)) for k in ev.scenarios])))
-    for q, cid in (("yaw_rms", "mi_heading"), ("v_rms", "mi_velocity")):
-        ctx.note(cid, "Per scenario MI-UKF / UKF+ICR: " + ", ".join(
-            f"{k} {out[f'{k}.mi_ukf.{q}'] / out[f'{k}.ukf_icr.{q}']:.3f}" for k in ev.scenarios) + ".")
+    for q in ("yaw_rms", "v_rms"):  # margins of the MI-UKF < UKF+ICR claims: per-seed paired difference of the gmeans
+        per = _per_seed(ev, q)
+        g = {f: _gmean_per_seed(per, f) for f in FILTERS}
+        for f in FILTERS:
+            out[f"gmean_seed.{f}.{q}"] = float(np.mean(g[f]))  # seed mean of the per-seed gmeans (the margin's scale)
+        out[f"gmean.margin.{q}"] = _half_width(g["ukf_icr"] - g["mi_ukf"])
+    per_yaw = _per_seed(ev, "yaw_rms")
+    ctx.note("mi_heading", "Per scenario MI-UKF / UKF+ICR: " + _ratios(out, "mi_ukf.yaw_rms", "ukf_icr.yaw_rms")
+             + "; per seed (gmean over the scenarios): " + ", ".join(
+                 f"{r:.2f}" for r in _gmean_per_seed(per_yaw, "mi_ukf") / _gmean_per_seed(per_yaw, "ukf_icr")) + ".")
+    ctx.note("mi_velocity", (
+        "Per scenario MI-UKF / UKF+ICR against truth: " + _ratios(out, "mi_ukf.v_rms", "ukf_icr.v_rms")
+        + "; against the GNSS body velocity (Liu's reference): " + _ratios(out, "mi_ukf.v_rms_gnss", "ukf_icr.v_rms_gnss")
+        + "; yaw rate against truth: " + _ratios(out, "mi_ukf.wz_rms", "ukf_icr.wz_rms") + "."))
     return out
 
 
 # ------------------------------------------------------------------------------------------ ICR
+def _mean_stat(rows: Any, q: str) -> float:
+    """Seed mean of an ICR statistic (NaN when a seed has none: no ICR on a straight line)."""
+    return float(np.mean([st[q] for st in rows]))
+
+
 def icr(ctx: Any) -> dict[str, float]:
-    """ICR means and smoothness per scenario (MI-UKF), GNSS speed in scenario 3, yaw-rate sweep."""
+    """ICR means and smoothness per scenario (MI-UKF), scenario 1 as Liu drove it, the yaw-rate sweep, the
+    sensors' view of the slip in scenario 3 (GNSS against encoder), the ICR and slip spreads."""
     ev = _evaluate(ctx)
     out: dict[str, float] = {}
     for k, sr in ev.scenarios.items():
         for f in FILTERS:
             suffix = "" if f == "mi_ukf" else ".ukf_icr"
-            for q in ("y_l", "y_r", "x_icr", "icr_std"):
-                out[f"{k}.{q}{suffix}"] = float(np.mean([st[q] for st in sr.icr_stats[f]]))
-        out[f"{k}.wz_mi_ukf"] = float(np.mean([st["wz"] for st in sr.icr_stats["mi_ukf"]]))
-        out[f"{k}.vx_mi_ukf"] = float(np.mean([st["vx"] for st in sr.icr_stats["mi_ukf"]]))
-        for q in ("abs_wz", "vx_gnss", "y_l", "y_r", "x_icr", "abs_slip"):
-            out[f"{k}.{q}" if q in ("abs_wz", "vx_gnss", "abs_slip") else f"{k}.truth_{q}"] = sr.truth_stats[q]
+            for q in ("y_l", "y_r", "x_icr", "icr_std", "cv_icr", "cv_slip"):
+                out[f"{k}.{q}{suffix}"] = _mean_stat(sr.icr_stats[f], q)
+        out[f"{k}.wz_mi_ukf"] = _mean_stat(sr.icr_stats["mi_ukf"], "wz")
+        out[f"{k}.vx_mi_ukf"] = _mean_stat(sr.icr_stats["mi_ukf"], "vx")
+        for q in ("abs_wz", "vx_gnss", "abs_slip", "v_tread", "wz_tread", "wz_gyro", "radius_gnss", "radius_en_dr",
+                  "sideslip_gnss_deg"):
+            out[f"{k}.{q}"] = sr.truth_stats[q]
+        for q in ("y_l", "y_r", "x_icr"):
+            out[f"{k}.truth_{q}"] = sr.truth_stats[q]
+    out["s1_liu.icr_std"] = _mean_stat(ev.s1_liu, "icr_std")
+    out["s1_liu.abs_wz"] = _mean_stat(ev.s1_liu, "abs_wz")
     out["sweep_r17.icr_std"] = out["s2.icr_std"]
     out["sweep_r17.abs_wz"] = out["s2.abs_wz"]
     for r, rows in ev.sweep.items():
-        tag = f"sweep_r{r:g}"
-        out[f"{tag}.icr_std"] = float(np.mean([st["icr_std"] for st in rows]))
-        out[f"{tag}.abs_wz"] = float(np.mean([st["abs_wz"] for st in rows]))
+        out[f"sweep_r{r:g}.icr_std"] = _mean_stat(rows, "icr_std")
+        out[f"sweep_r{r:g}.abs_wz"] = _mean_stat(rows, "abs_wz")
     s3 = ev.scenarios["s3"].truth_stats
-    same_rate = out["s3.abs_wz"] < 1.5 * out["s2.abs_wz"]
     ctx.note("icr_smoother_s3_vs_s2", (
-        f"Smoothness = std of y_l, y_r over t >= {SETTINGS.steady_t0:g} s. Truth mean |yaw rate|: s2 {out['s2.abs_wz']:.3f}, "
-        f"s3 {out['s3.abs_wz']:.3f} rad/s (Liu: about 0.5 and 1 rad/s). The testbed's reverse small-radius turn runs at "
-        f"v_x {s3['vx']:.2f} m/s, radius {abs(s3['vx'] / s3['wz']):.2f} m (commanded -1 m/s, 0.5 m)"
-        + ("; both scenarios turn at almost the same rate, so the comparison cannot separate them and the yaw-rate "
-           "sweep tests the stated cause." if same_rate else "; the yaw-rate sweep tests the stated cause as well.")))
+        f"Std of y_l, y_r, t >= {SETTINGS.steady_t0:g} s: s2 {out['s2.icr_std']:.3f}, s3 {out['s3.icr_std']:.3f} m; truth "
+        f"mean |yaw rate| s2 {out['s2.abs_wz']:.3f}, s3 {out['s3.abs_wz']:.3f} rad/s (Liu about 0.5 and 1); s3 runs at v_x "
+        f"{s3['vx']:.2f} m/s, radius {abs(s3['vx'] / s3['wz']):.2f} m (commanded -1 m/s, 0.5 m)."))
     ctx.note("icr_smoother_s2_vs_s1", (
-        f"Straight path: |yaw rate| {out['s1.abs_wz']:.1e} rad/s, the ICR (eqs. (2), (3), (5)) divides filter noise by "
-        "the near-zero yaw rate and hits the [-20, 20] clamp, as in Liu Fig. 9."))
+        f"Std of y_l, y_r: s2 {out['s2.icr_std']:.3f} m at {out['s2.abs_wz']:.3f} rad/s, scenario 1 as Liu drove it "
+        f"(4 m/s, radius {abs(SETTINGS.s1_liu_radius):g} m) {out['s1_liu.icr_std']:.3f} m at {out['s1_liu.abs_wz']:.3f} rad/s; "
+        f"the testbed straight (|yaw rate| {out['s1.abs_wz']:.1e} rad/s) has no ICR (std {out['s1.icr_std']:.3f})."))
     ctx.note("icr_smoother_sweep", "Mean |yaw rate| [rad/s] at radii 17, 8, 4, 2 m: " + ", ".join(
         f"{out[f'sweep_r{r:g}.abs_wz']:.3f}" for r in (17.0, *SETTINGS.sweep_radii)) + ".")
+    ctx.note("severe_slip", (
+        f"Scenario 3 steady: GNSS v_x {out['s3.vx_gnss']:.3f} m/s, encoder tread speed {out['s3.v_tread']:.3f} m/s "
+        f"(Liu: -0.3 against -1); gyro yaw rate {out['s3.wz_gyro']:.3f}, encoder no-slip {out['s3.wz_tread']:.3f} rad/s "
+        f"(Liu: -1 against -2); GNSS sideslip {out['s3.sideslip_gnss_deg']:.1f} deg (Liu up to 40); truth slip "
+        f"s_l, s_r {_slips(ev)}."))
+    ctx.note("s3_skids_outside", (
+        f"Scenario 3 turn radius: GNSS speed / gyro {out['s3.radius_gnss']:.3f} m, En-DR (no-slip, encoders) "
+        f"{out['s3.radius_en_dr']:.3f} m, commanded 0.5 m."))
     path = ctx.out_dir / "liu2020_icr_smoothness.png"
     _smoothness_figure(path, ev, out)
     ctx.figure(path, "ICR smoothness (std of the MI-UKF's y_l, y_r) against the mean yaw rate: scenarios and sweep")
     return out
+
+
+def _slips(ev: Evaluation) -> str:
+    run = ev.scenarios["s3"].run0
+    w = run.t >= SETTINGS.steady_t0
+    return ", ".join(f"{float(np.nanmean(run[c][w])):.2f}" for c in ("truth_slip_l", "truth_slip_r"))
 
 
 # ------------------------------------------------------------------------------------------ heading
@@ -209,6 +313,17 @@ def heading(ctx: Any) -> dict[str, float]:
 
 
 # ------------------------------------------------------------------------------------------ outage
+def _window_drift(run: Any, est: Any, i0: int, i1: int) -> float:
+    """Position error at row i1 of a dead reckoning restarted at row i0 from the true pose: the estimate's own
+    displacement over [i0, i1] in its body frame at i0, applied to the truth pose at i0."""
+    c, s_ = math.cos(est["yaw"][i0]), math.sin(est["yaw"][i0])
+    dx, dy = est["x"][i1] - est["x"][i0], est["y"][i1] - est["y"][i0]
+    bx, by = c * dx + s_ * dy, -s_ * dx + c * dy
+    ct, st = math.cos(run["truth_yaw"][i0]), math.sin(run["truth_yaw"][i0])
+    px, py = run["truth_x"][i0] + ct * bx - st * by, run["truth_y"][i0] + st * bx + ct * by
+    return float(math.hypot(px - run["truth_x"][i1], py - run["truth_y"][i1]))
+
+
 def outage(ctx: Any) -> dict[str, float]:
     """20 s GNSS outage on scenario 2: no NaN, PD covariance, errors and pose NEES."""
     ev = _evaluate(ctx)
@@ -245,6 +360,21 @@ def outage(ctx: Any) -> dict[str, float]:
                                                      for r, e in zip(ev.outage_runs, ests)]))
             ok = ok and out[f"{m}.nan_count"] == 0 and min_eig > 0
     out["no_nan"] = float(ok)
+    # Sec. IV-A: "the previous GNSS data still takes effect ... through ICR kinematics": the filters' error at the
+    # outage's end against dead reckoning over the same 20 s started from the true pose at the outage's start
+    i0 = int(np.searchsorted(t, t0))
+    drift = {m: np.array([_window_drift(r, e, i0, i_end) for r, e in zip(ev.outage_runs, ev.outage_est[m])])
+             for m in ("en_dr", "icr")}
+    worst = np.max([[float(np.hypot(e["x"][i_end] - r["truth_x"][i_end], e["y"][i_end] - r["truth_y"][i_end]))
+                     for r, e in zip(ev.outage_runs, ev.outage_est[f])] for f in FILTERS], axis=0)
+    out["en_dr.drift_window"], out["icr.drift_window"] = float(np.mean(drift["en_dr"])), float(np.mean(drift["icr"]))
+    out["filters.err_end"] = float(np.mean(worst))
+    out["margin.outage"] = _half_width(drift["en_dr"] - worst)
+    ctx.note("outage_error_end", (
+        f"Error at t = {t1:g} s after {t1 - t0:g} s without GNSS: UKF+ICR {out['ukf_icr.err_end']:.3f}, MI-UKF "
+        f"{out['mi_ukf.err_end']:.3f} m; dead reckoning over the same {t1 - t0:g} s from the true pose at {t0:g} s: "
+        f"En-DR {out['en_dr.drift_window']:.3f}, ICR {out['icr.drift_window']:.3f} m; consistent configuration "
+        + ", ".join(f"{out[f'{m}.err_end']:.3f}" for m in CONSISTENT) + " m."))
     ctx.note("outage_no_nan", (
         f"Position error at the end of the outage (t = {t1:g} s): " + ", ".join(
             f"{LABELS[m]} {out[f'{m}.err_end']:.3f} m" for m in METHODS)

@@ -73,7 +73,8 @@ Consistency (issue 4; measured on the yi_* scored paths, results/yi2009/nees_con
     ``reference_turn_noise``).  Earlier versions, measured
     and replaced (see the nees note for their numbers): white R
     inflated by (1 + rho)/(1 - rho) (R of metres per second wherever the calibration data contain a bias); the
-    slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time); skipping
+    slip fed back with a Gauss-Markov state (locked at the clip on the straight line 90 % of the time, with the printed
+    (14)'s equal-speed case: see methods.yi2009.slip.constrained_slip); skipping
     the rows at the clip (the lock stays, position RMS 14 m); a two-lag autocovariance fit of sigma, tau (unstable
     at this noise level, sigma 4x the moving-mean estimate).  Tried and not kept: scheme 3's v_y error as a
     Gauss-Markov state on the S error itself [m], multiplied by the yaw rate (the structure of (15): zero error on a

@@ -33,7 +33,8 @@ class Yi2009EkfConsistent(Yi2009Ekf):
     v_y (15) with S(gamma)), but (each point an option of :func:`run_filter_gm`; the nees table's ablation switches
     them one at a time):
     * ``slip_rows`` = "state": the slip is a state, not fed back.  Yi's feedback makes (13) a copy of the filter's
-      previous velocity (no information, and self-locking at the +1 clip of (6)); here the net slip velocity is the
+      previous velocity (no information beyond the sign bounds of (14); with the printed (14)'s equal-speed case it
+      self-locked at the +1 clip of (6) on the straight line); here the net slip velocity is the
       Gauss-Markov error state of the v_x row, so schemes 1 and 2 fuse the same rows;
     * the correlated errors of the v_x (13) and v_y (15) rows are first-order Gauss-Markov states instead of white
       noise (net slip; the S(gamma) error in (15));

@@ -46,7 +46,9 @@ Choices (each one stated where the paper is silent or the testbed differs)
   is invariant to scaling (a1, a2, a3) by a common factor, so a3 is held at the published 0.039 and
   (a1, a2) are fitted; only a1/a3 (= S at gamma = 0) and a2/a3 are identifiable, and are reported.
 * Fig. 3 uses the 140/60 rpm run on each surface (tile: ``scenarios/yi_s_gamma_tile.toml``, not an
-  identification run).  "S does not change significantly" is tested as (max - min)/mean <= 0.25.
+  identification run).  "S does not change significantly" is tested as: the range over the surfaces is within
+  1.96 sqrt(2) times the vision measurement's RMS error of S (``fig4.ref_vs_truth_rms_cm``), the 95 % bound of the
+  difference of two measurements; "(41) describes S" as: the fit's residual RMS is within that error.
 * Scored runs: ``yi_straight`` (30/30 rpm), ``yi_circle`` (80/40 rpm), ``yi_figure8`` (80/40 <-> 40/80
   rpm at 10 rpm/s) as declared in scenarios/ (not changed), seeds 0..4 (full) or 0..1 (quick).  The
   testbed physics is deterministic and seed independent: a seed changes the sensor noise only.
@@ -59,12 +61,15 @@ Choices (each one stated where the paper is silent or the testbed differs)
   eqs. (3)-(4), wheel speeds from the encoder counts differentiated with the same filter, slip by
   eq. (6) clipped to [-1, 1]); the testbed truth slips (``truth_slip_l/r``) are reported beside it
   (``*_truth`` metrics).  Comparison window t >= 1 s, up to half a window before the end, both treads
-  faster than 0.05 m/s.  "Slip estimates track the reference" is defined per path as: RMS of
-  (estimate - reference) over both sides <= 0.05 (5 slip points; the vision slip itself is within
-  ~0.03 of the truth: ``fig7.*.ref_vs_truth``), and, where the reference slip varies in time (the "8"
-  shape: sign changes), the Pearson correlation over time >= 0.7 (mean of the two sides).  Scheme 3
-  (the paper's proposal) is the claimed one; all three are tabulated.  The claim "slips are close to
-  zero at 30/30 rpm" is a statement about the robot: tested on the truth slip (declared).  On a turn
+  faster than 0.05 m/s.  "Slip estimates closely match the vision-based slip values" is tested per path as:
+  scheme 3's slip is at least as close to the testbed truth as the vision slip is (RMS(estimate - truth) <=
+  RMS(vision - truth), ``fig7.*.v3.rms_truth`` / ``fig7.*.ref_vs_truth``).  Scheme 3 (the paper's proposal) is
+  the claimed one; all three are tabulated.  The claims "slips are close to zero at 30/30 rpm" and "one side's
+  slips change sign on the 8" are statements about the robot: tested on the truth slip against the vision slip's
+  error (what the paper's instrument resolves); the slip signs of Sec. III-A (turning CCW: left brakes, right
+  pulls) on the truth at every turning step.  Issue 30's no-latch criterion (``fig7.straight.v3.within``: slip
+  within 0.1 of the truth at >= 95 % of the steps after 1 s) and scheme 3's RMS below 20 % of the path length are
+  checks beyond the paper.  On a turn
   the 1 s derivative window shrinks the speed slightly (c = sum h_k sin(w k h)/w: ~0.5 % at
   0.5 rad/s, ~1 slip point on the inner side of the 80/40 circle; tests/methods/yi2009/test_repro.py).
 * Filter consistency (not a Yi claim; issue 4): the horizontal velocity V_I (x, y) NEES against truth after

@@ -81,6 +81,16 @@ def _score(run: Run, est: Estimate, vis: tuple[np.ndarray, np.ndarray], cfg: Set
     moving = est["t"] >= cfg.slip_t0
     at_bound = np.nanmax(np.abs(lam_est[moving]), axis=1) >= cfg.bound_level
     out["at_bound"] = float(np.mean(at_bound))
+    # issue 30's no-latch criterion: the share of the steps after slip_t0 whose slips (both sides) are within
+    # slip_within of the truth's (eq. (6) of the truth, clipped as (6) is)
+    lam_t = np.column_stack([np.interp(est["t"][moving], tt, np.clip(run[f"truth_slip_{s}"], -1.0, 1.0)) for s in "lr"])
+    out["slip_within"] = float(np.mean(np.abs(lam_est[moving] - lam_t).max(axis=1) <= cfg.slip_within))
+    te = est["t"]
+    droll = est["roll"][moving] - np.interp(te[moving], tt, run["truth_roll"])
+    out["roll_err"] = float(np.sqrt(np.mean(droll**2)))
+    yaw_t = np.interp(te, tt, np.unwrap(run["truth_yaw"]))  # cross-track: the error normal to the true heading
+    ex, ey = est["x"] - np.interp(te, tt, run["truth_x"]), est["y"] - np.interp(te, tt, run["truth_y"])
+    out["cross_rms"] = float(np.sqrt(np.mean((-np.sin(yaw_t) * ex + np.cos(yaw_t) * ey) ** 2)))
     if "x_icr" in est.data.columns:
         out["s_used"] = float(np.nanmedian(est["x_icr"][moving]))
     return out
@@ -106,10 +116,39 @@ def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settin
     out["truth_rms"] = float(np.sqrt(np.mean(tl[fin] ** 2)))
     out["ref_vs_truth"] = slip_agreement(run.t, tl, tv, lv, (run.t >= cfg.slip_t0) & (run.t <= t_end))["rms"]
     _, track = _geometry(run)
-    turn = w & (np.abs(run["truth_wz"]) > 0.05) & (np.abs(run["truth_vx"]) > 1e-3)
+    turn = w & (np.abs(run["truth_wz"]) > cfg.turn_rate) & (np.abs(run["truth_vx"]) > 1e-3)
     out["abs_gamma"] = (float(np.median(np.abs(track * run["truth_wz"][turn] / (2.0 * run["truth_vx"][turn]))))
                         if turn.any() else math.nan)  # eq. (40) with (3), (4)
+    # Sec. III-A after eq. (8): turning counterclockwise the left treads brake (lambda_L <= 0), the right pull
+    # (lambda_R >= 0), and clockwise the reverse: the share of the turning steps whose truth slips have these signs
+    ok = np.where(run["truth_wz"] > 0, (tl[:, 0] <= 0) & (tl[:, 1] >= 0), (tl[:, 0] >= 0) & (tl[:, 1] <= 0))
+    turn &= np.isfinite(tl).all(axis=1)
+    out["sign_rule"] = float(np.mean(ok[turn])) if turn.any() else math.nan
+    # Fig. 7c: a side whose truth slip takes both signs: the smaller of its two excursions (positive and negative)
+    out["sign_excursion"] = float(max(min(np.max(tl[fin, j]), -np.min(tl[fin, j])) for j in range(2)))
     return out
+
+
+def gyro_roll_error(run: Run, t_min: float) -> float:
+    """RMS [rad] after ``t_min`` of the roll of the direct integration of the gyro's Euler rates (10c)-(10e) from the
+    filter's initial attitude (its x0), against the truth: the error an estimate without roll information
+    accumulates from the gyro alone (the paper's "direct integration" of Fig. 8(a))."""
+    from methods.yi2009.ekf import EkfParams, align_inputs, initial_state
+
+    t, acc, gyr, enc = align_inputs(run)
+    r, _ = _geometry(run)
+    x0, _ = initial_state(acc, enc, r, EkfParams(), (0.0, 0.0, 0.0))
+    phi, th = float(x0[6]), float(x0[7])
+    roll = np.empty(t.size)
+    roll[0] = phi
+    for k in range(1, t.size):
+        dt = t[k] - t[k - 1]
+        wx, wy, wz = gyr[k - 1]
+        sf, cf = math.sin(phi), math.cos(phi)
+        phi, th = phi + dt * (wx + math.tan(th) * (sf * wy + cf * wz)), th + dt * (cf * wy - sf * wz)
+        roll[k] = phi
+    m = t >= t_min
+    return float(np.sqrt(np.mean((roll[m] - np.interp(t[m], run.t, run["truth_roll"])) ** 2)))
 
 
 def _evaluate(ctx: Any) -> Evaluation:
@@ -187,6 +226,7 @@ def _evaluate(ctx: Any) -> Evaluation:
                 if i == 0:
                     est0[v] = est
             scores.setdefault("v3_pub", []).append(_score(run, registry.estimate(v3_pub, run), vis, cfg))
+            scores.setdefault("gyro", []).append({"roll_err": gyro_roll_error(run, cfg.slip_t0)})
             if i == 0:
                 vis0 = vis
                 truth = _truth_diagnostics(run, vis, cfg)

@@ -47,6 +47,8 @@ class Settings:
     slip_min_speed: float = 0.05  # [m/s] tread speed below which slip (6) is not compared
     s_settle: float = 1.0  # [s] start of the steady window for S (as reference_s_gamma_point)
     bound_level: float = 0.999  # |lambda| at or above this counts as sitting on the +-1 clip
+    slip_within: float = 0.1  # issue 30's no-latch criterion: |lambda_est - lambda_truth| <= 0.1 (not a paper number)
+    turn_rate: float = 0.05  # [rad/s] |yaw rate| above which a step counts as turning (gamma, the slip signs)
     # sensitivity variant (declared as such, never a verdict): better encoders and IMU
     sensitivity: tuple[tuple[str, float], ...] = (
         ("platform.sensors.encoder.counts_per_rev", 20000),

@@ -11,6 +11,7 @@ Declared in ``scenarios/papers/yu2010.toml``; each function below is ``compute(c
 (:mod:`bench.reproduce`).  Paper item -> function:
 
   Table I, eq. (28), Sec. V-A (K, mu_sa, mu_op vs N; mu_roll, alpha) ... :func:`table1`     (sweep.py)
+  Sec. V-A variations from the transcribed Table I ..................... :func:`table1_definition` (sweep.py)
   Fig. 9   steady torque vs commanded radius ............................ :func:`fig9`       (sweep.py)
   Figs. 10-13  circle 0.2 m/s, R = 4 m (wheel speed, torque, path) ..... :func:`fig10_13`   (circle.py)
   Figs. 14-16  straight 0.2 m/s, closed vs open loop ................... :func:`fig14_16`   (straight.py)
@@ -29,9 +30,9 @@ constant-speed run at 0.3 m/s for mu_roll (Sec. V-A), and on flat straight runs 
 surface for that surface's mu_roll; it is scored on the circle, the 0.2 and 1.5 m/s straight
 runs, the ramps and the lemniscate, through :func:`bench.registry.calibrate` /
 :func:`bench.registry.estimate` (truth withheld, scoring a calibration run refused).  The
-lemniscate uses Yu's published Sec. V-C parameters instead of a calibration; it is run as the
-scenario ``yu_lemniscate`` declares it and once more from curve time
-:data:`~methods.yu2010.commands.LEMNISCATE_TAU0` (the plugin's reading of Fig. 21).
+lemniscate's surface is calibrated the same way on its own sweep (scenario ``yu_lemniscate_sweep``:
+Yu identified that surface's K, mu_sa, mu_op by eq. (28) too); Yu's published Sec. V-C values are
+scored beside it for comparison.
 Metrics and figures may read the testbed's truth (velocities, pose, terrain spec); the model never
 does.  Every simulation goes through ``ctx.simulate_many`` in one batch (run cache, process pool),
 and the runs and the calibrated model are shared between the compute functions through
@@ -43,17 +44,18 @@ step and ramps its PID reference at the same rate.
 """
 from methods.yu2010.repro.chi_curvature import WANG_RATIOS, WANG_SPEEDS, wang_fig5
 from methods.yu2010.repro.circle import ACCEL_PHASE, fig10_13
-from methods.yu2010.repro.lemniscate import LEMNISCATE_PARAMS, fig22_29
-from methods.yu2010.repro.ramps import DECEL_MARGIN, HOLD_TOL, fig18_20, ramp_outcome
+from methods.yu2010.repro.lemniscate import LEMNISCATE_PARAMS, RAMP_TIME, fig22_29, skill_ratio
+from methods.yu2010.repro.ramps import OUTCOMES, TAIL, fig18_20, ramp_outcome
 from methods.yu2010.repro.runs import (
     CAL_STRAIGHT_SPEED,
-    LEMNISCATE_FIG21,
+    LEMNISCATE_SWEEP,
     MEMO_KEY,
     RAMPS,
     SWEEP_SPEED,
     Calibrated,
     Experiments,
     calibrated,
+    calibrated_lemniscate,
     experiments,
     monotone,
     ramped_command,
@@ -69,15 +71,17 @@ from methods.yu2010.repro.sweep import (
     fig9,
     published_table1,
     table1,
+    table1_definition,
     variation,
 )
 
 __all__ = [
     "TABLE1_N", "Experiments", "Calibrated", "ramped_command", "ramp_outcome", "monotone", "variation",
-    "published_table1", "sweep_scenarios", "experiments", "calibrated", "table1", "fig9", "fig10_13",
-    "fig14_16", "fig17", "fig18_20", "fig22_29", "wang_fig5",
+    "published_table1", "sweep_scenarios", "experiments", "calibrated", "calibrated_lemniscate", "table1",
+    "table1_definition", "fig9", "fig10_13", "fig14_16", "fig17", "fig18_20", "fig22_29", "wang_fig5",
     # the constants of the modules (attributes of methods.yu2010.repro before it became a package)
-    "SWEEP_SPEED", "CAL_STRAIGHT_SPEED", "FIG9_SERIES", "TREND_TOL", "MULTISTART", "LEMNISCATE_FIG21",
-    "LEMNISCATE_PARAMS", "RAMPS", "HOLD_TOL", "DECEL_MARGIN", "ACCEL_PHASE", "WANG_RATIOS", "WANG_SPEEDS", "MEMO_KEY",
+    "SWEEP_SPEED", "CAL_STRAIGHT_SPEED", "FIG9_SERIES", "TREND_TOL", "MULTISTART", "LEMNISCATE_SWEEP",
+    "LEMNISCATE_PARAMS", "RAMP_TIME", "skill_ratio", "RAMPS", "OUTCOMES", "TAIL", "ACCEL_PHASE", "WANG_RATIOS",
+    "WANG_SPEEDS", "MEMO_KEY",
     "table_ii_params",
 ]

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from bench.registry import estimate
+from methods.yu2010.plugin import Yu2010OpenLoop
 from methods.yu2010.repro.figures import _figure_dynamic
 from methods.yu2010.repro.runs import _predict, _rms, calibrated
 
@@ -18,11 +20,14 @@ ACCEL_PHASE = 1.0  # [s] Yu's "acceleration phase of the motion (< 1 s)" (Sec. V
 
 
 def fig10_13(ctx: Any) -> dict[str, float]:
-    """Figs. 10-13: circle at 0.2 m/s, R = 4 m, from rest: closed-loop prediction vs testbed."""
+    """Figs. 10-13: circle at 0.2 m/s, R = 4 m, from rest: closed-loop prediction vs testbed, and the open loop
+    (the testbed's measured torques replayed, as Fig. 16 does on the straight) for the abstract's comparison of
+    the linear and angular velocities."""
     from bench.metrics import Trajectory, final_position_error
 
     cal = calibrated(ctx)
     run, est = _predict(ctx, cal.model, "circle_vinyl")
+    opened = estimate(Yu2010OpenLoop(cal.model.params), run)
     t = run.t
     enc = np.isfinite(run["enc_wl"])
     tq = np.isfinite(run["tau_l"])
@@ -36,6 +41,8 @@ def fig10_13(ctx: Any) -> dict[str, float]:
     out = {
         "rms_vx": _rms(est["vx"] - run["truth_vx"]),
         "rms_wz": _rms(est["wz"] - run["truth_wz"]),
+        "rms_vx_open": _rms(opened["vx"] - run["truth_vx"]),
+        "rms_wz_open": _rms(opened["wz"] - run["truth_wz"]),
         "rms_wl": _rms(e_wl), "rms_wr": _rms(e_wr),
         "rms_w_accel": _rms(np.concatenate([e_wl[acc], e_wr[acc]])),
         "rms_w_steady": _rms(np.concatenate([e_wl[~acc], e_wr[~acc]])),
@@ -54,7 +61,8 @@ def fig10_13(ctx: Any) -> dict[str, float]:
         "speed is r (w_l + w_r)/2 with the nominal radius (eq. (1)); the testbed's tires roll at 0.97 r, so "
         "part of the velocity error and most of the along-track drift of the path (Figs. 12-13) is that radius "
         "effect, which the model does not have. rms_w_accel is over Yu's acceleration phase (t < 1 s), "
-        "rms_w_steady after it."
+        "rms_w_steady after it. The *_open rows replay the testbed's logged torques in the same model without "
+        "the PID (Fig. 16's open loop; the paper shows it on the straight only)."
     ))
     _figure_dynamic(ctx, run, est, "fig10_13.png",
                     "Figs. 10-13: circle 0.2 m/s, R = 4 m: wheel speeds, torques, path and X/Y errors, "

@@ -5,9 +5,11 @@ Dynamic Modeling of a Skid-Steered Wheeled Vehicle," IEEE Transactions on Roboti
 no. 2, pp. 340-353, April 2010, doi:10.1109/TRO.2010.2042540.
 
 Every simulation of the reproduction goes through ``ctx.simulate_many`` in one batch (:func:`experiments`:
-the 31-radius sweep of Sec. V-A, the straight 0.3 m/s mu_roll run, a flat run per ramp surface, the scored
-runs); :func:`calibrated` is Yu2010 calibrated on the sweep + straight run (eq. (28), the N = 31 row of
-Table I).  Both live in ``ctx.scratch`` (key :data:`MEMO_KEY`; never persisted with the result).  The
+the 31-radius sweep of Sec. V-A, the straight 0.3 m/s mu_roll run, a flat run per ramp surface, the same sweep
+and straight run on the lemniscate's surface, the scored runs); :func:`calibrated` is Yu2010 calibrated on the
+vinyl sweep + straight run (eq. (28), the N = 31 row of Table I), :func:`calibrated_lemniscate` the same
+procedure on the lemniscate's surface (Yu: the parameters "must be determined for each surface").  They live in
+``ctx.scratch`` (key :data:`MEMO_KEY`; never persisted with the result).  The
 command the model gets is the scenario's command with its ``command.accel`` ramp (:func:`ramped_command`,
 Secs. V-B, V-C); :func:`_predict` is the model's prediction of a scored run.  The two measures the metrics
 use: :func:`_rms` and :func:`monotone`.
@@ -23,13 +25,13 @@ import numpy as np
 from bench.registry import calibrate, estimate
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
-from methods.yu2010.commands import LEMNISCATE_TAU0, commanded_radii
+from methods.yu2010.commands import commanded_radii
 from methods.yu2010.params import YuParams
 from methods.yu2010.plugin import SteadySummary, Yu2010, initial_wheel_speeds, steady_summary
 
 SWEEP_SPEED = 0.2  # [m/s] Fig. 9 / Table I sweep speed (scenario yu_radius_sweep)
 CAL_STRAIGHT_SPEED = 0.3  # [m/s] straight calibration run for mu_roll (not the scored 0.2 m/s run)
-LEMNISCATE_FIG21 = "yu_lemniscate_tau0_fig21"
+LEMNISCATE_SWEEP = "yu_lemniscate_sweep"  # the 31 radii on the lemniscate's surface (calibration)
 RAMPS = {  # Figs. 18-20: scenario, expected outcome
     "asphalt": ("ramp_asphalt_5p4", "holds"),
     "wood": ("ramp_wood_15", "decelerates"),
@@ -89,6 +91,8 @@ class Experiments:
     sweep: tuple[Run, ...]  # calibration: one steady turn per commanded radius
     straight_cal: Run  # calibration: straight constant speed (mu_roll)
     flat_cal: dict[str, Run]  # calibration: flat straight run on each ramp surface (its mu_roll)
+    lem_sweep: tuple[Run, ...]  # calibration: the 31 radii on the lemniscate's surface
+    lem_straight: Run  # calibration: straight constant speed on the lemniscate's surface (mu_roll)
     scored: dict[str, Run]  # scored runs by scenario name
     scenarios: dict[str, Scenario]
 
@@ -110,14 +114,21 @@ def _seed(ctx: Any) -> int:
     return int(ctx.seeds[0])
 
 
-def sweep_scenarios(quick: bool) -> tuple[np.ndarray, list[Scenario]]:
+def sweep_scenarios(quick: bool, base: str = "yu_radius_sweep") -> tuple[np.ndarray, list[Scenario]]:
     """The 31 commanded radii of Sec. V-A (all of them in quick mode too: Table I needs N = 31),
-    steady CCW turns at 0.2 m/s, 8 s each (4 s in quick mode)."""
+    steady CCW turns at 0.2 m/s, 8 s each (4 s in quick mode), on the surface of scenario ``base``."""
     dur = 4.0 if quick else 8.0
     radii = commanded_radii()
-    return radii, [load_scenario("yu_radius_sweep", {"id": f"yu_radius_sweep_R{R:.4g}", "duration": dur,
-                                                     "command.segments": [[dur, SWEEP_SPEED, float(R)]]})
+    return radii, [load_scenario(base, {"id": f"{base}_R{R:.4g}", "duration": dur,
+                                        "command.segments": [[dur, SWEEP_SPEED, float(R)]]})
                    for R in radii]
+
+
+def _straight_cal_scenario(base: str, dur: float) -> Scenario:
+    """The straight constant-speed mu_roll run (Sec. V-A) on the surface of scenario ``base``."""
+    return load_scenario(base, {"id": f"{base}_straight_{CAL_STRAIGHT_SPEED:g}_mu_roll", "duration": dur,
+                                "initial_speed": 0.0,
+                                "command.segments": [[dur, CAL_STRAIGHT_SPEED, math.inf]]})
 
 
 def _scored_scenarios(quick: bool) -> dict[str, Scenario]:
@@ -128,8 +139,6 @@ def _scored_scenarios(quick: bool) -> dict[str, Scenario]:
                                                              "command.segments": [[10.0, 0.2, 4.0]]})
         out["straight_0p2_vinyl"] = load_scenario("straight_0p2_vinyl", {
             "duration": 4.0, "command.segments": [[4.0, 0.2, math.inf]]})
-    # the partial lemniscate as the Yu plugin reads Fig. 21 (methods/yu2010/commands.LEMNISCATE_TAU0)
-    out[LEMNISCATE_FIG21] = load_scenario("yu_lemniscate", {"id": LEMNISCATE_FIG21, "command.t0": LEMNISCATE_TAU0})
     for scn_name, _ in RAMPS.values():
         out[scn_name] = load_scenario(scn_name)
     return out
@@ -152,14 +161,19 @@ def experiments(ctx: Any) -> Experiments:
     straight = load_scenario("straight_0p2_vinyl", {"id": "yu_straight_0p3_vinyl_mu_roll", "duration": dur,
                                                     "command.segments": [[dur, CAL_STRAIGHT_SPEED, math.inf]]})
     flats = {key: _flat_scenario(scn, dur) for key, (scn, _) in RAMPS.items()}
+    _, lem_sweep = sweep_scenarios(ctx.quick, LEMNISCATE_SWEEP)
+    lem_straight = _straight_cal_scenario(LEMNISCATE_SWEEP, dur)
     scored = _scored_scenarios(ctx.quick)
-    requests = [*sweep, straight, *flats.values(), *scored.values()]
-    runs = ctx.simulate_many([(s, seed) for s in requests])
-    n = len(sweep)
+    requests = [*sweep, straight, *flats.values(), *lem_sweep, lem_straight, *scored.values()]
+    runs = iter(ctx.simulate_many([(s, seed) for s in requests]))
+
+    def take(k: int) -> list[Run]:
+        return [next(runs) for _ in range(k)]
+
     out = Experiments(
-        radii=radii, sweep=tuple(runs[:n]), straight_cal=runs[n],
-        flat_cal=dict(zip(flats, runs[n + 1:n + 1 + len(flats)])),
-        scored=dict(zip(scored, runs[n + 1 + len(flats):])), scenarios=scored,
+        radii=radii, sweep=tuple(take(len(sweep))), straight_cal=take(1)[0],
+        flat_cal=dict(zip(flats, take(len(flats)))), lem_sweep=tuple(take(len(lem_sweep))),
+        lem_straight=take(1)[0], scored=dict(zip(scored, take(len(scored)))), scenarios=scored,
     )
     memo["experiments"] = out
     return out
@@ -175,6 +189,17 @@ def calibrated(ctx: Any) -> Calibrated:
         summaries = tuple(steady_summary(r.without_truth(), model.settle) for r in ex.sweep)
         memo["calibrated"] = Calibrated(model, summaries)
     return memo["calibrated"]
+
+
+def calibrated_lemniscate(ctx: Any) -> Yu2010:
+    """Yu2010 calibrated on the lemniscate's surface by the procedure of :func:`calibrated` (mu_roll from
+    its straight run, alpha from its sweep's yaw rates, K, mu_sa, mu_op by eq. (28) over its 31 radii): Yu
+    identified this surface's K = 0.0009, mu_sa = 0.6488, mu_op = 0.4601 the same way (Secs. V-A, V-C)."""
+    memo = _memo(ctx)
+    if "calibrated_lemniscate" not in memo:
+        ex = experiments(ctx)
+        memo["calibrated_lemniscate"] = calibrate(Yu2010(), [*ex.lem_sweep, ex.lem_straight])
+    return memo["calibrated_lemniscate"]
 
 
 def table_ii_params(platform: Mapping[str, Any]) -> YuParams:

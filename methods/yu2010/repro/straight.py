@@ -103,6 +103,7 @@ def fig17(ctx: Any) -> dict[str, float]:
         "v_final_model": float(np.mean(est["vx"][tail])),
         "v_cmd": 1.5,
     }
+    out["v_final_diff"] = out["v_final_model"] - out["v_final_tb"]
     q = est.info["params"]
     ctx.note("fig17", (
         "Both saturate at the motor controller's voltage limit, eq. (27): PWM (V_CC - U_loss) = "

@@ -8,8 +8,8 @@ import pytest
 from bench import reproduce as R
 from methods import mandow2007 as M
 from methods.mandow2007 import repro as MR
-from tests.methods.mandow2007.reproduction import (MANDOW_MD, PARAM_ROW, TIRE_COLUMN, TIRE_NAME, numbers, paper_lines,
-                                                   rows)
+from tests.methods.mandow2007.reproduction import (MANDOW_MD, PARAM_ROW, TIRE_COLUMN, TIRE_NAME, WANG_MD, numbers,
+                                                   paper_lines, rows)
 
 
 def mandow_paper_tables() -> list[dict[str, list[float]]]:
@@ -72,3 +72,47 @@ def test_claims_reference_declared_tables():
             ids = c.get("metrics") or c.get("series") or [c.get("metric") or c.get("num")]
             ids = ids + ([c["den"]] if "den" in c else [])
             assert all(i.split(".")[0] in tables for i in ids), (paper, c["id"])
+
+
+# ------------------------------------------------------------------------------------------ claims
+def _plain(text: str) -> str:
+    """Text for a verbatim comparison: the paper's LaTeX symbols as the Greek letters of the quotes, then only
+    letters and digits, lower case."""
+    for tex, greek in (("\\chi", "χ"), ("\\lambda", "λ"), ("\\alpha", "α"), ("\\sigma", "σ"), ("\\Delta", "Δ"),
+                       ("\\phi", "φ"), ("\\Phi", "Φ")):
+        text = text.replace(tex, greek)
+    return "".join(ch for ch in text.lower() if ch.isalnum())
+
+
+@pytest.mark.parametrize("paper,md", [("mandow2007", MANDOW_MD), ("wang2015", WANG_MD)])
+def test_claim_quotes_are_the_papers_words(paper, md):
+    """Every quote (fragments joined by ' / ') occurs verbatim in the paper text (symbols and spacing aside)."""
+    text = _plain("\n".join(paper_lines(md)))
+    for c in R.load_paper(paper)["claims"]:
+        assert c.get("quote"), (paper, c["id"])
+        for fragment in c["quote"].split(" / "):
+            assert _plain(fragment) in text, (paper, c["id"], fragment)
+
+
+@pytest.mark.parametrize("paper", ["mandow2007", "wang2015"])
+def test_claims_name_section_and_page_and_their_tolerance(paper):
+    for c in R.load_paper(paper)["claims"]:
+        assert re.search(r"\b(Sec\.|Abstract|Conclusions|Table)", c["source"]), (paper, c["id"])
+        assert re.search(r"\bp\. ~?\d{4}", c["source"]), (paper, c["id"])
+        assert "headline" in c, (paper, c["id"])
+        if "margin" in c:  # a margin is an interval metric of the reproduction, named in the origin
+            assert c["margin"] in c["tolerance_origin"] and "95 %" in c["tolerance_origin"] or \
+                "two standard errors" in c["tolerance_origin"], (paper, c["id"])
+        if "tolerance_abs" in c or "tolerance" in c:
+            assert "paper" in c["tolerance_origin"], (paper, c["id"])  # a spread the paper itself reports
+
+
+def test_mandow_chi_terrain_claim_only_where_tables_support_it():
+    """Tables I-II support 'chi lower on asphalt than on smooth concrete' for the 50 psi tires only: that is the
+    claim encoded, and the published numbers say so."""
+    ids = {c["id"] for c in R.load_paper("mandow2007")["claims"]}
+    chi = {(t, w): MR.published_parameters(t, w)["chi"] for t in MR.TERRAINS for w in MR.TIRES}
+    supported = {w for w in MR.TIRES if chi[("asphalt", w)] < chi[("smooth_concrete", w)]}
+    assert supported == {"pneumatic_50psi"}
+    assert "chi_asphalt_lt_concrete_50psi" in ids
+    assert not {"chi_asphalt_lt_concrete_20psi", "chi_asphalt_lt_concrete_solid"} & ids

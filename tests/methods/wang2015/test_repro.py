@@ -46,3 +46,27 @@ def test_wang_grid_and_dead_reckoning_behaviour(results):
     for cr in range(8):
         fitted = float(W.chi_of_curvature_ratio(cr, m["fit.a"], m["fit.b"]))
         assert fitted == pytest.approx(m[f"table3.chi_lambda{cr}"], abs=4 * m["fit.fit_rms_residual"])
+
+
+def test_lack_of_fit_closed_form():
+    groups = [[1.0, 3.0], [2.0, 4.0], [3.0, 5.0]]  # pure error: 2 + 2 + 2 = 6 on 6 - 3 = 3 degrees of freedom
+    exact = [-1.0, 1.0, -1.0, 1.0, -1.0, 1.0]  # a curve through the group means: no lack of fit
+    assert WR.lack_of_fit(groups, exact)[0] == 0.0
+    assert WR.lack_of_fit(groups, exact)[2] == 1.0
+    off = [-1.5, 0.5, -1.0, 1.0, -0.5, 1.5]  # the curve 2.5, 3, 3.5: SS_res 7, SS_lof 1 on 3 - 2 = 1 dof
+    f, f95, p = WR.lack_of_fit(groups, off)
+    assert f == pytest.approx((1.0 / 1) / (6.0 / 3))
+    assert f95 == pytest.approx(10.127964486013932)  # F(1, 3), 95 % quantile
+    assert 0.0 < p < 1.0
+
+
+def test_wang_claim_metrics_follow_their_definitions(results):
+    m = results[0]["wang2015"].metrics
+    means = [m[f"table3.chi_lambda{cr}"] for cr in range(8)]
+    assert m["table3.curvature_range"] >= abs(m["table3.curvature_spread"]) - 1e-12
+    assert m["table3.curvature_range"] * (sum(means) / 8) == pytest.approx(max(means) - min(means), rel=1e-9)
+    for k in ("ms_pos", "ms_dphi"):  # the paired mean difference is the difference of the means over seeds
+        assert m[f"table4.chi_lambda_minus_constant_{k}"] == pytest.approx(
+            m[f"table4.chi_lambda_{k}"] - m[f"table4.constant_{k}"], rel=1e-9, abs=1e-15)
+        assert m[f"table4.{k}_half95"] > 0.0
+    assert m["table4.n_seeds"] == len(WR.SETTINGS.validation_seeds_quick)

@@ -260,3 +260,26 @@ def test_mean_ci_closed_form() -> None:
     half = 2.7764451051977987 * math.sqrt(2.5) / math.sqrt(5)  # t_0.975(4) * s / sqrt(n)
     assert (m, lo, hi) == pytest.approx((3.0, 3.0 - half, 3.0 + half))
     assert all(math.isnan(v) for v in Y.mean_ci([1.0])[1:])
+
+
+def test_gyro_roll_error_closed_form() -> None:
+    """The direct integration of (10c) with a constant roll-rate bias b (no noise, no other rate, level start): roll(t)
+    = b t, so its RMS against a zero truth roll over t in [t0, T] is b sqrt((T^3 - t0^3) / (3 (T - t0)))."""
+    import dataclasses
+
+    from methods.yi2009.repro.evaluation import gyro_roll_error
+    from tests.methods.yi2009.synthetic import TESTBED, synthetic_run
+
+    b = 2e-3
+    sens = dataclasses.replace(TESTBED, acc_noise=0.0, gyr_noise=0.0, acc_bias=(0.0, 0.0, 0.0), gyr_bias=(b, 0.0, 0.0),
+                               t_rest=0.0)
+    run = synthetic_run("straight", 0, sens, knots_rpm=[(0, 30, 30), (10, 30, 30)])
+    d = run.data.copy()
+    d["truth_roll"] = 0.0
+    run = from_arrays({c: d[c].to_numpy() for c in d.columns}, run.meta)
+    t = run.t
+    t0, t_end = 1.0, float(t[-1])
+    m = t >= t0
+    expected = float(np.sqrt(np.mean((b * t[m]) ** 2)))  # the same grid (forward Euler of a constant rate is exact)
+    assert expected == pytest.approx(b * math.sqrt((t_end**3 - t0**3) / (3 * (t_end - t0))), rel=2e-3)
+    assert gyro_roll_error(run, t0) == pytest.approx(expected, rel=1e-9)

@@ -15,11 +15,30 @@ def test_slip_ratio_definition_and_clipping():
 
 
 def test_constrained_slip_follows_turn_direction():
-    """Eq. (14): the faster side keeps only lambda >= 0, the slower only lambda <= 0; straight: both >= 0."""
+    """Eq. (14): the faster side keeps only lambda >= 0, the slower only lambda <= 0; equal speeds are the
+    w_L <= w_R case of Sec. III-C's sentence ("lambda_L <= 0 and lambda_R >= 0"): left braking, right traction."""
     lam_l = np.array([0.2, -0.2, 0.2, -0.2, 0.1, -0.1])
     lam_r = np.array([-0.1, 0.1, 0.3, -0.3, 0.1, -0.1])
     w_l = np.array([8.0, 8.0, 4.0, 4.0, 5.0, 5.0])
     w_r = np.array([4.0, 4.0, 8.0, 8.0, 5.0, 5.0])
     pl, pr = constrained_slip(lam_l, lam_r, w_l, w_r)
-    np.testing.assert_array_equal(pl, [0.2, 0.0, 0.0, -0.2, 0.1, 0.0])
+    np.testing.assert_array_equal(pl, [0.2, 0.0, 0.0, -0.2, 0.0, -0.1])
     np.testing.assert_array_equal(pr, [-0.1, 0.0, 0.3, 0.0, 0.1, 0.0])
+
+
+def test_constrained_slip_at_equal_speeds_bounds_the_speed_from_both_sides():
+    """On a straight line (w_L = w_R, zero yaw rate: lambda_L = lambda_R = lambda) the v_x of eq. (13),
+    r w (1 - (lambda'_L + lambda'_R)/2), is the mean of the encoder speed and the filter's own, r w (1 - lambda / 2),
+    whatever the sign of lambda: a filter speed behind the wheels (lambda > 0, up to the +1 clip) is pulled up and
+    one ahead (lambda < 0) pulled down.  The printed (14)'s ">=" for lambda'_L (traction on both sides) gives
+    r w (1 - lambda) for lambda > 0: the filter's own speed, and 0 at the clip (the latch).  Equal speeds also give
+    the limit of w_L < w_R (the case the sentence assigns them to)."""
+    lam = np.array([1.0, 0.6, 0.2, -0.2, -0.6])
+    w = np.full(lam.size, 3.14)
+    pl, pr = constrained_slip(lam, lam, w, w)
+    v13 = R_WHEEL * w * (1.0 - (pl + pr) / 2.0)
+    np.testing.assert_allclose(v13, R_WHEEL * w * (1.0 - lam / 2.0), rtol=0, atol=1e-15)
+    assert v13[0] == R_WHEEL * 3.14 / 2.0  # at the +1 clip (filter speed 0) (13) still reads half the wheel speed
+    pl2, pr2 = constrained_slip(lam, lam, w, w + 1e-9)
+    np.testing.assert_array_equal(pl, pl2)
+    np.testing.assert_array_equal(pr, pr2)

@@ -1,0 +1,235 @@
+"""Where every platform and terrain parameter comes from: the ``[sources]`` table of each file.
+
+Every parameter of ``scenarios/platforms/*.toml`` and ``scenarios/terrains/*.toml`` (every key but the
+descriptive ``name`` and ``source``; nested tables by dotted key) names its source::
+
+    [sources]
+    mu_sa = {kind = "paper", ref = "Yu 2010 Table II (vinyl)"}
+    shear_modulus = {kind = "chosen", ref = "K = 3 mm gives the trend of Wang 2015 Table 3",
+                     claims = ["wang2015.chi_decreases"]}
+    "motor.max_power" = {kind = "chosen", ref = "...", claims = ["yu2010.ramps_testbed"]}
+
+Kinds (:data:`SOURCE_KINDS`): ``paper`` (a physical quantity a paper measured or gives: table / section),
+``datasheet`` (a maker's data sheet, named), ``calibration`` (an unscored calibration run, named), ``real``
+(real data, the file named), ``testbed`` (a testbed choice with no outcome in view: why), ``chosen``
+(chosen to produce a claimed outcome: ``claims`` lists them as ``"<paper>.<claim id>"``; each becomes a
+calibration target, :mod:`bench.reproduce.sources`).  A field the file does not set takes the dataclass
+default, whose source is :data:`DEFAULT_REFS` (kind ``testbed``); a field a scenario's
+``[platform_overrides]`` / ``[terrain_overrides]`` or ``--set`` changes gets kind ``override``.
+
+:func:`file_sources` checks a file: a parameter without a source, a source without a parameter, an
+unknown kind, a ``chosen`` source without claims is a one-line :class:`~bench.schema.SpecError` naming
+the file, the field and its value.  :class:`Sources` is the read-only mapping field -> :class:`Source`
+that a :class:`~bench.spec.Platform` / :class:`~bench.spec.Terrain` keeps (not part of its equality,
+hash or :func:`~bench.spec.to_dict`: a source is provenance, not physics).
+"""
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Iterator, Mapping
+
+from bench.schema import _UNIT_FIELDS, SpecError
+
+__all__ = ["SOURCE_KINDS", "OVERRIDE", "DESCRIPTIVE", "DEFAULT_REFS", "Source", "Sources", "parameters",
+           "file_sources", "default_sources"]
+
+SOURCE_KINDS = ("paper", "datasheet", "calibration", "real", "testbed", "chosen")
+OVERRIDE = "override"  # set by a scenario's overrides or --set; never written in a platform / terrain file
+DESCRIPTIVE = ("name", "source")  # file keys that describe, not parameterise
+_CLAIM = re.compile(r"^[a-z][a-z0-9_]*\.[A-Za-z0-9_]+$")
+_ENTRY_KEYS = ("kind", "ref", "claims")
+
+# sources of the dataclass defaults (a field the file does not set); kind "testbed"
+DEFAULT_REFS: dict[str, str] = {
+    "wheel_width": "default b = 0.05 m (Yu 2010 Table II)",
+    "patch_length": "default Yu L = 0.31 m (Table II)",
+    "patch_gap": "default Yu C = 0.24 m (Table II)",
+    "cg_offset_x": "default 0: centre of mass at the geometric centre (Yu 2010 Sec. III, Wang 2015 assumption 1)",
+    "cg_offset_y": "default 0: centre of mass at the geometric centre (Yu 2010 Sec. III, Wang 2015 assumption 1)",
+    "wheel_radius_scale_l": "default 1: effective rolling radius = nominal",
+    "wheel_radius_scale_r": "default 1: effective rolling radius = nominal",
+    "actuator_delay": "default 0: no command delay modelled",
+    "command_gain_sum": "default 1: the robot applies the command as given",
+    "command_gain_diff": "default 1: the robot applies the command as given",
+    "command_limit_mean": "default inf: no command limit",
+    "command_limit_diff": "default inf: no command limit",
+    "payload": "default 0: no payload",
+    "motor.controller_loss": "default 0: ideal motor controller (no voltage loss)",
+    "motor.max_power": "default 0: no power limit beyond the current limit",
+    "motor.gear_efficiency": "default 1: lossless gearbox (Yu 2010 models no gear loss)",
+    "sensors.encoder.scale_error_l": "default 0: exact encoder scale",
+    "sensors.encoder.scale_error_r": "default 0: exact encoder scale",
+    "sensors.imu.accel_noise": "default 0.02 m/s^2 per sample: generic MEMS IMU, not from a paper",
+    "sensors.imu.gyro_noise": "default 0.002 rad/s per sample: generic MEMS IMU, not from a paper",
+    "sensors.imu.accel_bias_walk": "default 1e-4 m/s^2/sqrt(s): generic MEMS IMU, not from a paper",
+    "sensors.imu.gyro_bias_walk": "default 1e-5 rad/s/sqrt(s): generic MEMS IMU, not from a paper",
+    "sensors.imu.gyro_bias_z": "default 0: no constant gyro bias",
+    "sensors.imu.saturation_accel": "default 80 m/s^2: never reached by these robots",
+    "sensors.imu.saturation_gyro": "default 8 rad/s: never reached by these robots",
+    "mu_lat_ratio": "default 1: isotropic friction (Yu 2010 eq. (7): one mu per wheel)",
+    "shear_modulus_lat_ratio": "default 1: isotropic shear (Yu 2010 eq. (7): one K per wheel)",
+    "slope": "default 0: flat ground",
+    "slip_velocity_eps": "default 0.02 m/s: numerical smoothing of the Coulomb sign() and floor of the "
+                         "rolled-distance speed of the Janosi law (bench.sim.tire), no outcome in view",
+    "friction_patches": "default none: uniform ground",
+}
+
+
+@dataclass(frozen=True)
+class Source:
+    kind: str
+    ref: str
+    claims: tuple[str, ...] = ()
+
+
+class Sources(Mapping[str, Source]):
+    """Read-only mapping dotted field -> :class:`Source` (immutable, so copies are the object itself)."""
+
+    __slots__ = ("_d",)
+
+    def __init__(self, entries: Mapping[str, Source] | Iterable[tuple[str, Source]] = ()):
+        self._d = dict(entries)
+
+    def __getitem__(self, key: str) -> Source:
+        return self._d[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._d)
+
+    def __len__(self) -> int:
+        return len(self._d)
+
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self._d.items())))
+
+    def __repr__(self) -> str:
+        return f"Sources({len(self._d)} fields)"
+
+    def __copy__(self) -> "Sources":
+        return self
+
+    def __deepcopy__(self, memo: dict) -> "Sources":
+        return self
+
+    def __reduce__(self) -> tuple:
+        return Sources, (tuple(self._d.items()),)
+
+    def chosen(self) -> dict[str, Source]:
+        """The fields chosen to produce a claimed outcome."""
+        return {k: s for k, s in self._d.items() if s.kind == "chosen"}
+
+    def overridden(self, keys: Iterable[str], ref: str) -> "Sources":
+        """A copy with ``keys`` (and every field under a key that names a table) of kind ``override``."""
+        d = dict(self._d)
+        for key in map(_field_name, keys):
+            under = [k for k in d if k.startswith(key + ".")]
+            for k in under or [key]:
+                d[k] = Source(OVERRIDE, ref)
+        return Sources(d)
+
+    @classmethod
+    def _from_spec(cls, value: Any, file: Path | str, name: str) -> "Sources":
+        """:func:`bench.schema.build`'s conversion: a Sources, or a table as in a file (nested or dotted keys),
+        kinds checked (``override`` allowed here: merged scenario data carries it)."""
+        if isinstance(value, Sources):
+            return value
+        if not isinstance(value, Mapping):
+            raise SpecError(file, name, value, "expected a table of sources")
+        out = {}
+        for key, entry in _entries(value):
+            out[_field_name(key)] = _source(entry, file, f"{name}.{key}", entry, (*SOURCE_KINDS, OVERRIDE))
+        return cls(out)
+
+
+def _field_name(key: str) -> str:
+    """File key -> dataclass field (``slope_deg`` -> ``slope``, as :func:`bench.schema.build` converts it)."""
+    head, _, last = key.rpartition(".")
+    if last in _UNIT_FIELDS:
+        last = _UNIT_FIELDS[last][0]
+    return f"{head}.{last}" if head else last
+
+
+def _entries(table: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """(dotted key, entry) of a [sources] table; a sub-table without ``kind`` nests ([sources.motor])."""
+    for key, val in table.items():
+        if isinstance(val, Source) or (isinstance(val, Mapping) and "kind" in val) or not isinstance(val, Mapping):
+            yield prefix + key, val
+        else:
+            yield from _entries(val, f"{prefix}{key}.")
+
+
+def _source(entry: Any, file: Path | str, field: str, value: Any, kinds: tuple[str, ...]) -> Source:
+    """One entry as a Source; a malformed entry raises SpecError(file, field, value, why)."""
+    if isinstance(entry, Source):
+        entry = dataclasses.asdict(entry)
+    if not isinstance(entry, Mapping):
+        raise SpecError(file, field, value, "source must be a table {kind = ..., ref = ...}")
+    extra = sorted(set(entry) - set(_ENTRY_KEYS))
+    if extra:
+        raise SpecError(file, field, value, f"source has unknown key(s) {extra}; allowed: {list(_ENTRY_KEYS)}")
+    kind, ref, claims = entry.get("kind"), entry.get("ref"), entry.get("claims", ())
+    if kind not in kinds:
+        raise SpecError(file, field, value, f"source kind {kind!r} is not one of {'|'.join(kinds)}")
+    if not isinstance(ref, str) or not ref.strip():
+        raise SpecError(file, field, value, f"source of kind {kind!r} needs a ref (where the number comes from)")
+    if not isinstance(claims, (list, tuple)) or not all(isinstance(c, str) and _CLAIM.match(c) for c in claims):
+        raise SpecError(file, field, value, f"source claims {claims!r} must be a list of \"<paper>.<claim id>\"")
+    if kind == "chosen" and not claims:
+        raise SpecError(file, field, value, "a 'chosen' source lists the claims it was chosen for "
+                                            "(claims = [\"<paper>.<claim id>\"])")
+    if kind != "chosen" and claims:
+        raise SpecError(file, field, value, f"only a 'chosen' source lists claims (kind is {kind!r})")
+    return Source(kind, ref.strip(), tuple(claims))
+
+
+def parameters(data: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
+    """(dotted key, value) of every parameter of a platform / terrain file: every leaf but ``name``,
+    ``source`` and ``[sources]``; an array (outages, friction patches) is one parameter."""
+    for key, val in data.items():
+        if not prefix and key in (*DESCRIPTIVE, "sources"):
+            continue
+        if isinstance(val, Mapping):
+            yield from parameters(val, f"{prefix}{key}.")
+        else:
+            yield prefix + key, val
+
+
+def file_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]:
+    """The checked sources of one platform / terrain file (keys as the file writes them): every parameter
+    has one, every source names a parameter of the file."""
+    raw = data.get("sources", {})
+    if not isinstance(raw, Mapping):
+        raise SpecError(file, "sources", raw, "expected a [sources] table")
+    params = dict(parameters(data))
+    entries = dict(_entries(raw))
+    for key, entry in entries.items():
+        if key not in params:
+            raise SpecError(file, f"sources.{key}", entry, "a source for a parameter the file does not set")
+    out = {}
+    for key, value in params.items():
+        if key not in entries:
+            raise SpecError(file, key, value, f"no source: add {key} = {{kind = ..., ref = ...}} to [sources] "
+                                              f"(kind {'|'.join(SOURCE_KINDS)})")
+        out[key] = _source(entries[key], file, key, value, SOURCE_KINDS)
+    return out
+
+
+def default_sources(cls: type, present: Iterable[str], prefix: str = "") -> dict[str, Source]:
+    """Sources of the fields of dataclass ``cls`` (nested dataclasses by dotted key) that ``present``
+    (dataclass field names, dotted) does not set: the default's :data:`DEFAULT_REFS` entry."""
+    present = set(present)
+    out: dict[str, Source] = {}
+    for f in dataclasses.fields(cls):
+        if f.name.startswith("_") or (not prefix and f.name in (*DESCRIPTIVE, "sources")):
+            continue
+        key = prefix + f.name
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        if dataclasses.is_dataclass(default):
+            out.update(default_sources(type(default), present, key + "."))
+        elif key not in present:
+            ref = DEFAULT_REFS.get(key) or f"default {default!r} of bench.spec.{cls.__name__}.{f.name}"
+            out[key] = Source("testbed", ref)
+    return out
