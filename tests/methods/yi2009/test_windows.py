@@ -21,6 +21,7 @@ from bench.kinematics import icr_forward
 from bench.real.drive import DRIVE_DT, DriveWindows
 from bench.real.windows import MIN_TURN, Pose, VelocityWindowModel, fit_end_poses, tread_speeds, window_twist
 from methods.yi2009 import windows as W
+from tests.methods.wang2015.original_windows import OriginalSymmetricChi as SymmetricChi  # the original start model
 
 R, B, N = 0.165, 0.55, 40  # Husky-like wheel radius and track [m], samples per window
 
@@ -28,28 +29,6 @@ R, B, N = 0.165, 0.55, 40  # Husky-like wheel radius and track [m], samples per 
 # ------------------------------------------------------------------------------------------
 # the original models (bench/real/benchmark.py at commit c1fd38c), verbatim
 # ------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class SymmetricChi(VelocityWindowModel):
-    """Symmetric ICR model with constant chi (Wang eqs. (11), (15)); chi fitted on end poses."""
-
-    wheel_radius: float
-    track: float
-    chi: float = 1.0
-    name: str = "icr_sym_chi"
-    label: str = "symmetric ICR, constant chi (end-pose LSQ)"
-    fit_cost: float = math.nan
-
-    def fit(self, calib: DriveWindows) -> "SymmetricChi":
-        return fit_end_poses(self, ["chi"], [1.5], ([0.5], [10.0]), calib)
-
-    def velocities(self, w: DriveWindows) -> Pose:
-        half = self.chi * self.track / 2.0
-        return icr_forward(*tread_speeds(w, self.wheel_radius), half, -half, 0.0)
-
-    def params(self) -> dict[str, float]:
-        return {"chi": self.chi}
-
-
 def yi_s_points(w: DriveWindows, track: float, min_turn: float = MIN_TURN
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Yi 2009 Sec. V-B data points (gamma, S [m]) per window, from the reference (as Yi does with
