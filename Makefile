@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 WORKERS ?=
 
-.PHONY: venv test test-all reproduce reproduce-quick bench dashboard clean
+.PHONY: venv test test-all reproduce reproduce-quick reproduce-extended bench dashboard clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -15,17 +15,25 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# the tests run on every core (pytest-xdist; TEST_WORKERS=0 runs them in this process)
+TEST_WORKERS ?= auto
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow" --benchmark-skip
+	$(BIN)/python -m pytest -q -m "not slow" --benchmark-skip -n $(TEST_WORKERS)
 
 test-all: $(STAMP)
-	$(BIN)/python -m pytest -q --benchmark-skip
+	$(BIN)/python -m pytest -q --benchmark-skip -n $(TEST_WORKERS)
 
 reproduce: $(STAMP)
 	$(BIN)/skidbench reproduce --all $(if $(WORKERS),--workers $(WORKERS),)
 
 reproduce-quick: $(STAMP)
 	$(BIN)/skidbench reproduce --all --quick
+
+# the studies beyond the papers' tables and headline claims (NEES null distribution, replication, ablations):
+# results/extended/
+reproduce-extended: $(STAMP)
+	$(BIN)/skidbench reproduce --all --extended $(if $(WORKERS),--workers $(WORKERS),)
 
 bench: $(STAMP)
 	$(BIN)/python -m pytest tests/bench -q --benchmark-only --benchmark-json=.benchmarks/latest.json

@@ -197,7 +197,8 @@ def test_second_reproduce_comes_from_the_result_cache(paper_dir, tmp_path):
     first = R.reproduce_paper("fake", runner, tmp_path / "a")
     runner2 = Runner(cache_dir=tmp_path / "cache")
     second = R.reproduce_paper("fake", runner2, tmp_path / "b")
-    assert runner2.stats == {"simulated": 0, "cached": 0}  # not even a cached run was read
+    assert (runner2.stats["simulated"], runner2.stats["cached"]) == (0, 0)  # not even a cached run was read
+    assert runner2.stats["result_cache_hits"] == 1
     assert second.metrics == first.metrics
     assert (tmp_path / "a" / "fake" / "t1.md").read_text() == (tmp_path / "b" / "fake" / "t1.md").read_text()
 

@@ -84,3 +84,43 @@ def test_league_cells_in_parallel_equal_serial(tmp_path):
     assert [(c.method, c.scenario) for c in par] == [(c.method, c.scenario) for c in serial]
     assert all(len(c.values) == 2 and all(map(math.isfinite, c.values)) for c in serial if not c.error)
     assert league_csv(par) == league_csv(serial)
+
+
+def test_seeds_share_the_physics_and_give_the_runs_of_separate_simulations(tmp_path):
+    """A scenario whose command draws nothing from the seed is stepped once for all its seeds: each seed's run
+    is, bit for bit, the run of its own simulate() call (which steps the physics itself); a joystick command
+    (seeded references) gets its own physics per seed."""
+    from bench.sim import physics_seed, simulate
+
+    scn = load_scenario("circle_vinyl", {"duration": 1.0})
+    seeds = (0, 3, 4)
+    grouped = Runner(cache_dir=tmp_path / "g").simulate_many([(scn, s) for s in seeds])
+    assert [r.content_hash() for r in grouped] == [simulate(scn, s).content_hash() for s in seeds]
+    assert len({r.content_hash() for r in grouped}) == len(seeds)  # the sensors differ per seed
+    assert {physics_seed(scn, s) for s in seeds} == {0}
+    joy = load_scenario("mandow_joystick_asphalt_pneumatic_20psi", {"duration": 1.0})
+    assert joy.command.kind == "random" and physics_seed(joy, 3) == 3
+
+
+def test_only_seeded_command_kinds_change_the_wheel_references():
+    """SEEDED_COMMANDS names exactly the command kinds whose references move with the seed."""
+    import numpy as np
+
+    from bench.sim.commands import SEEDED_COMMANDS, wheel_reference
+    from bench.spec import SCENARIO_DIR
+
+    t = np.linspace(0.0, 30.0, 301)
+    seen: set[str] = set()
+    for path in sorted(SCENARIO_DIR.glob("*.toml")):
+        try:
+            scn = load_scenario(path.stem)
+        except Exception:  # noqa: BLE001 - templates / non-scenario files
+            continue
+        kind = scn.command.kind
+        if kind in seen:
+            continue
+        seen.add(kind)
+        a, b = wheel_reference(t, scn.command, scn.platform, 0), wheel_reference(t, scn.command, scn.platform, 7)
+        moved = not (np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]))
+        assert moved == (kind in SEEDED_COMMANDS), kind
+    assert SEEDED_COMMANDS <= seen

@@ -70,6 +70,12 @@ def _load_optional_commands() -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``skidbench`` program.  Called as a program (``argv`` None) it first re-executes itself with numpy's
+    and OpenBLAS's CPU dispatch pinned (:func:`bench.cpu.reexec_pinned`: the same runs on any x86-64 CPU)."""
+    if argv is None:
+        from bench.cpu import reexec_pinned
+
+        reexec_pinned()
     ap = build_parser()
     a = ap.parse_args(argv)
     try:

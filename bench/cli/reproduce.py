@@ -33,15 +33,20 @@ from bench.report.io import atomic_write_text
 def _repro_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml); default all")
     p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example, the real data and the stress report")
-    p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI)")
+    p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI); default output folder results/quick/")
+    p.add_argument("--extended", action="store_true",
+                   help="also the studies beyond the papers' tables and headline claims (the NEES null distribution and "
+                        "its replication, ablations); default output folder results/extended/")
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
-    p.add_argument("--results", type=Path, default=None, help="output folder (default results/)")
+    p.add_argument("--results", type=Path, default=None,
+                   help="output folder (default results/, results/quick/ with --quick, results/extended/ with --extended)")
     p.add_argument("--check", action="store_true",
                    help="only check the paper declarations and list their warnings (no run; exit 2 on an error)")
 
 
-EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int) registered by features
+EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int, extended: bool)
+EXTENDED_EXTRAS = ("league",)  # the extras with an extended variant (`reproduce --extended --all` runs them)
 
 
 def register_extra(name: str):
@@ -51,14 +56,14 @@ def register_extra(name: str):
     return deco
 
 
-def _extra_marker(name: str, results_dir: Path, quick: bool) -> Path:
+def _extra_marker(name: str, results_dir: Path, quick: bool, extended: bool = False) -> Path:
     """A marker per (extra, everything it depends on): code, specs, data, output folder."""
     from bench.reproduce import code_key
     from bench.reproduce.runner import DEFAULT_CACHE
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
-    key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id)
+    key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id, str(extended))
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
 
 
@@ -109,7 +114,12 @@ def _remove_stale_temp_files(results_dir: Path) -> None:
 def _reproduce(a: argparse.Namespace) -> int:
     from bench import reproduce as R
 
-    results_dir = a.results or R.RESULTS
+    extended = bool(getattr(a, "extended", False))
+    if extended and a.quick:
+        print("error: reproduce: --quick and --extended exclude each other", file=sys.stderr)
+        return 2
+    # the quick and extended runs have folders of their own: neither overwrites the full run's per-paper files
+    results_dir = a.results or (R.RESULTS / "extended" if extended else R.RESULTS / "quick" if a.quick else R.RESULTS)
     papers = [p for p in a.papers if p not in EXTRAS] or None
     if getattr(a, "check", False):
         checked = papers or R.list_papers()
@@ -120,10 +130,21 @@ def _reproduce(a: argparse.Namespace) -> int:
         print(f"{len(checked)} paper declaration(s) checked: no error, {len(warnings)} warning(s)")
         return 0
     _remove_stale_temp_files(results_dir)
+    if extended and papers is None and (a.all or not a.papers):  # the papers that have a study beyond them
+        papers = [p for p in R.list_papers() if any(t.get("extended") for t in R.load_paper(p)["tables"])]
     extras = [p for p in a.papers if p in EXTRAS]
     if a.all or not a.papers:
-        extras = list(EXTRAS)
+        extras = list(EXTENDED_EXTRAS if extended else EXTRAS)
+    if extended and (bad := [x for x in extras if x not in EXTENDED_EXTRAS]):
+        print(f"error: reproduce --extended: {', '.join(bad)} has no extended variant "
+              f"(those that have: {', '.join(EXTENDED_EXTRAS)})", file=sys.stderr)
+        return 2
+    from bench.reproduce.runner import DEFAULT_CACHE
+
+    cache_was_empty = not any(Path(DEFAULT_CACHE).glob("*.parquet")) if Path(DEFAULT_CACHE).is_dir() else True
     t0 = time.perf_counter()
+    stages: dict[str, dict[str, Any]] = {}
+    stats = {"simulated": 0, "cached": 0}
     with _progress() as prog:
         task = prog.add_task("runs", total=None)
 
@@ -134,20 +155,35 @@ def _reproduce(a: argparse.Namespace) -> int:
             prog.console.print(msg)
 
         if papers is not None or a.all or not a.papers:
+            runner_stats: dict[str, Any] = {}
             R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
-                        results_dir=results_dir, log=log, progress=progress)
+                        results_dir=results_dir, log=log, progress=progress, extended=extended,
+                        stats_out=runner_stats)
+            stages.update(runner_stats.get("stages", {}))
+            for k in stats:
+                stats[k] += runner_stats.get(k, 0)
         for name in extras:
-            marker = _extra_marker(name, results_dir, a.quick)
+            t_x = time.perf_counter()
+            marker = _extra_marker(name, results_dir, a.quick, extended)
             if _extra_kept(marker, results_dir):
                 log(f"{name}: unchanged since the last run, results kept")
+                stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": True}
                 continue
             log(f"extra: {name}")
             before = _file_state(results_dir)
-            EXTRAS[name](results_dir, a.quick, workers=a.workers)
+            EXTRAS[name](results_dir, a.quick, workers=a.workers, **({"extended": True} if extended else {}))
             marker.parent.mkdir(parents=True, exist_ok=True)
             atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before)}, indent=1) + "\n")
+            stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": False}
     R.link_extras(Path(results_dir), a.quick)
-    print(f"reproduce finished in {time.perf_counter() - t0:.1f} s -> {results_dir}")
+    wall = time.perf_counter() - t0
+    if (a.all or not a.papers) and (papers is None or extended):  # the whole reproduction: its stage table
+        from bench.reproduce import timing
+
+        doc = timing.record(Path(results_dir), a.quick, stages, wall, stats["simulated"], stats["cached"], a.workers,
+                            cache_was_empty)
+        timing.insert(Path(results_dir) / ("REPORT_quick.md" if a.quick else "REPORT.md"), doc)
+    print(f"reproduce finished in {wall:.1f} s -> {results_dir}")
     return 0
 
 
@@ -197,9 +233,24 @@ def _cmp_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("new", type=Path)
 
 
+def _read_metrics(path: Path) -> dict[str, Any]:
+    """A metrics document, or a :class:`~bench.spec.SpecError` naming the file (one line, exit 2)."""
+    from bench.spec import SpecError
+
+    try:
+        doc = json.loads(path.read_text())
+    except OSError as exc:
+        raise SpecError(path, "<file>", str(path), f"cannot read the metrics file ({exc.strerror})") from None
+    except ValueError as exc:
+        raise SpecError(path, "<file>", str(path), f"not JSON ({exc})") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("metrics"), dict):
+        raise SpecError(path, "metrics", None, "not a metrics document (a JSON object with 'metrics')")
+    return doc
+
+
 def _compare(a: argparse.Namespace) -> int:
-    base = json.loads(a.base.read_text())
-    new = json.loads(a.new.read_text())
+    base = _read_metrics(a.base)
+    new = _read_metrics(a.new)
     moved = compare_metrics(base, new)
     if not moved:
         print(f"no metric moved beyond its tolerance ({len(base.get('metrics', {}))} compared)")
@@ -218,11 +269,11 @@ register_extra("real")(_extra_real)  # the real data (bench.cli.real)
 
 
 @register_extra("league")
-def _extra_league(results_dir: Path, quick: bool, workers: int = 1) -> None:
+def _extra_league(results_dir: Path, quick: bool, workers: int = 1, extended: bool = False) -> None:
     from bench.reproduce.league import write_league
     from bench.reproduce.runner import Runner
 
-    write_league(results_dir, quick, Runner(workers=workers))
+    write_league(results_dir, quick, Runner(workers=workers), extended=extended)
 
 
 @register_extra("gap")

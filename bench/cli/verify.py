@@ -20,16 +20,26 @@ def _verify_args(p: argparse.ArgumentParser) -> None:
 
 
 def _verify(a: argparse.Namespace) -> int:
+    from bench.cpu import dispatch_state
     from bench.reproduce import RESULTS
     from bench.reproduce.runner import verify_manifest
+    from bench.spec import SpecError
 
     path = a.manifest or RESULTS / "runs_manifest.json"
-    manifest = json.loads(path.read_text())
+    try:
+        manifest = json.loads(path.read_text())
+        manifest["runs"], manifest["scenarios"]
+    except OSError as exc:
+        raise SpecError(path, "<file>", str(path), f"cannot read the manifest ({exc.strerror})") from None
+    except (ValueError, KeyError, TypeError):
+        raise SpecError(path, "runs", None, "not a runs manifest (JSON with 'runs' and 'scenarios')") from None
     bad = verify_manifest(manifest, workers=a.workers, limit=a.limit)
     n = min(len(manifest["runs"]), a.limit or len(manifest["runs"]))
     for b in bad:
         print(f"MISMATCH {b['scenario']} seed {b['seed']}: recorded {b['content_hash'][:12]}, got {b['got'][:12]}")
-    print(f"{n - len(bad)}/{n} runs re-simulated to identical content hashes (workers={a.workers})")
+    made = manifest.get("cpu_dispatch", "not recorded")
+    print(f"{n - len(bad)}/{n} runs re-simulated to identical content hashes (workers={a.workers}; CPU dispatch: "
+          f"made under {made}, checked under {dispatch_state()})")
     return 1 if bad else 0
 
 

@@ -59,6 +59,8 @@ class Entry:
     seconds: float | None
     metrics: Mapping[str, float]
     bench: Mapping[str, float]
+    stages: Mapping[str, float] = field(default_factory=dict)  # seconds per stage (bench.reproduce.timing)
+    cold: bool = False  # the run computed everything (empty run cache, nothing from the result cache)
 
     @property
     def short(self) -> str:
@@ -113,9 +115,10 @@ def load_history(path: str | Path) -> list[Entry]:
         metrics = {str(k): v for k, v in ((k, math.nan if v is None else _num(v)) for k, v in obj["metrics"].items())
                    if v is not None}
         bench = {str(k): v for k, v in ((k, _num(v)) for k, v in (obj.get("bench") or {}).items()) if v is not None}
+        stages = {str(k): v for k, v in ((k, _num(v)) for k, v in (obj.get("stages") or {}).items()) if v is not None}
         entries.append(Entry(index=len(entries), commit=str(obj["commit"]), date=str(obj.get("date", "")),
                              quick=bool(obj.get("quick", False)), seconds=_num(obj.get("seconds")),
-                             metrics=metrics, bench=bench))
+                             metrics=metrics, bench=bench, stages=stages, cold=bool(obj.get("cold", False))))
     return entries
 
 
@@ -123,7 +126,7 @@ def load_baselines(results_dir: str | Path) -> dict[str, dict[str, Any]]:
     """Per metric id: ``published``, and the baseline ``value``/``tolerance``/``quick`` of
     ``metrics.json`` (preferred) or ``metrics_quick.json``.  Missing files give an empty mapping."""
     out: dict[str, dict[str, Any]] = {}
-    for name in ("metrics_quick.json", "metrics.json"):  # full last: it wins
+    for name in ("quick/metrics_quick.json", "metrics_quick.json", "metrics.json"):  # full last: it wins
         path = Path(results_dir) / name
         if not path.is_file():
             continue
@@ -350,7 +353,8 @@ def _paper_page(paper: str, mids: list[str], entries: Sequence[Entry], baselines
 
 
 def _speed_page(entries: Sequence[Entry], papers: Sequence[str]) -> tuple[str, int]:
-    body = ["<p>Wall time of each <code>skidbench reproduce</code>, and the mean time of each speed benchmark "
+    body = ["<p>Wall time of each <code>skidbench reproduce</code>, the seconds of each of its stages (each paper, "
+            "real, league, gap, stress; cold runs: nothing from a cache), and the mean time of each speed benchmark "
             "(<code>make bench</code>, pytest-benchmark; recorded into the next reproduce's history line).</p>",
             _legend(published=False)]
     figs = []
@@ -361,6 +365,17 @@ def _speed_page(entries: Sequence[Entry], papers: Sequence[str]) -> tuple[str, i
                             unit=unit, scale=scale)
         if n:
             figs.append(f"<figure><figcaption><b>reproduce wall time</b></figcaption>{svg}</figure>")
+    for stage in sorted({k for e in entries for k in e.stages}):  # bench.reproduce.timing: per stage and run
+        vals = [e.stages[stage] for e in entries if stage in e.stages]
+        unit, scale = _time_unit(vals)
+        svg, n = _chart_for(_chart_id("stage-" + stage), f"stage {stage}", entries,
+                            lambda e, k=stage: e.stages.get(k), unit=unit, scale=scale)
+        if n:
+            cold = [e.stages[stage] for e in entries if stage in e.stages and e.cold]
+            last = f"latest {_fmt(vals[-1] * scale)} {unit}" + (f", last cold {_fmt(cold[-1] * scale)} {unit}"
+                                                                  if cold else "")
+            figs.append(f"<figure><figcaption><b>stage {_esc(stage)}</b> <span class=\"v\">{_esc(last)}</span>"
+                        f"</figcaption>{svg}</figure>")
     names = sorted({b for e in entries for b in e.bench})
     for name in names:
         vals = [e.bench[name] for e in entries if name in e.bench]

@@ -158,14 +158,22 @@ CELL_COST = {"liu2020.mi_ukf": 20.0, "liu2020.ukf_icr": 20.0, "liu2020.mi_ukf_co
              "yu2010.closed_loop": 1.5, "yu2010.open_loop": 1.5}
 
 
+def league_methods(extended: bool = False) -> list[str]:
+    """The registered methods of the league: every paper's configuration and the baselines; with ``extended`` also
+    the configurations that are skidbench's own (a plugin with ``beyond_paper = True``, e.g. the consistent
+    filters: 70 % of the league's time, ``reproduce --extended``)."""
+    names = list(registry.discover())
+    return names if extended else [n for n in names if not getattr(registry.get(n), "beyond_paper", False)]
+
+
 def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: list[str] | None = None,
-               scenarios: tuple[str, ...] = LEAGUE_SCENARIOS, log: Callable[[str], None] = lambda s: None
-               ) -> list[Cell]:
+               scenarios: tuple[str, ...] = LEAGUE_SCENARIOS, log: Callable[[str], None] = lambda s: None,
+               extended: bool = False) -> list[Cell]:
     """Every method on every scenario.  The runs are simulated first (through ``runner``: cache,
     pool or Dask); then, with ``runner.workers > 1``, the cells (method x scenario) run as jobs in a
     process pool, most expensive first.  Each cell is deterministic and independent of the others,
     so the table is the same bytes serial or parallel (tested)."""
-    names = methods or list(registry.discover())
+    names = methods or league_methods(extended)
     seeds = 2 if quick else n_seeds
     pairs = [(name, sname) for sname in scenarios for name in names]
     parallel = runner.workers > 1 and not runner.dask_scheduler
@@ -187,7 +195,7 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
     return cells
 
 
-def league_markdown(cells: list[Cell], n_seeds: int) -> str:
+def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False) -> str:
     scen = list(dict.fromkeys(c.scenario for c in cells))
     meths = list(dict.fromkeys(c.method for c in cells))
     by = {(c.method, c.scenario): c for c in cells}
@@ -195,6 +203,9 @@ def league_markdown(cells: list[Cell], n_seeds: int) -> str:
         "# League table: position RMS against the testbed truth [m]", "",
         f"Mean and 95% bootstrap interval over {n_seeds} seeds per scenario; each method calibrated on a",
         "separate calibration set of the scenario's platform and terrain (bench/reproduce/league.py). Lower is better;",
+        ("the papers' configurations, the baselines and skidbench's own consistent configurations (*_consistent);"
+         if extended else "the papers' configurations and the baselines (skidbench's own consistent configurations: "
+         "`skidbench reproduce league --extended`, results/extended/league.md);"),
         "the best mean per scenario is in bold. Empty cells: the method failed (see notes) or lacks sensors.", "",
         "| method | " + " | ".join(scen) + " |", "|---|" + "---|" * len(scen),
     ]
@@ -234,11 +245,11 @@ def league_csv(cells: list[Cell]) -> str:
 
 
 def write_league(results_dir: Path, quick: bool, runner: Runner | None = None,
-                 log: Callable[[str], None] = print) -> list[Cell]:
+                 log: Callable[[str], None] = print, extended: bool = False) -> list[Cell]:
     runner = runner or Runner(workers=os.cpu_count() or 1)
     n = 2 if quick else 5
-    cells = run_league(runner, n_seeds=n, quick=quick, log=log)
+    cells = run_league(runner, n_seeds=n, quick=quick, log=log, extended=extended)
     suffix = "_quick" if quick else ""
-    atomic_write_text(results_dir / f"league{suffix}.md", league_markdown(cells, n))
+    atomic_write_text(results_dir / f"league{suffix}.md", league_markdown(cells, n, extended))
     atomic_write_text(results_dir / f"league{suffix}.csv", league_csv(cells))
     return cells

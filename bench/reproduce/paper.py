@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bench.report.io import atomic_path
-from bench.reproduce.claims import check_claim, check_published_on, evaluate_claim, fails_if, row_verdict, verdict
+from bench.reproduce.claims import (check_claim, check_published_on, claim_metric_ids, evaluate_claim, fails_if,
+                                    row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import REPO, Runner
@@ -38,6 +39,7 @@ class Context:
     runner: Runner
     out_dir: Path
     quick: bool = False
+    extended: bool = False  # `reproduce --extended`: also the studies beyond the papers' tables and headline claims
     seeds: tuple[int, ...] = (0, 1, 2, 3, 4)
     figures: list[tuple[str, str]] = field(default_factory=list)
     notes: dict[str, str] = field(default_factory=dict)
@@ -89,6 +91,16 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
         if c["id"] in claim_ids:
             raise SpecError(path, f"claims.{c['id']}.id", c["id"], "claim ids must be unique")
         claim_ids.add(c["id"])
+    extended = {t["id"] for t in decl["tables"] if t.get("extended", False)}
+    for i, t in enumerate(decl["tables"]):
+        if not isinstance(t.get("extended", False), bool):
+            raise SpecError(path, f"tables[{i}].extended", t["extended"], "true or false")
+    for c in decl.get("claims", []):  # the default run reports every claim of the paper: none may rest on a study
+        uses = sorted({m.split(".")[0] for m in claim_metric_ids(c)} & extended)  # that only --extended runs
+        if uses and (c.get("headline") or c.get("scope", "paper") == "paper"):
+            raise SpecError(path, f"claims.{c['id']}.scope", c.get("scope", "paper"),
+                            f"a claim of the paper rests on the extended table(s) {uses}: only claims with scope "
+                            "'beyond' may")
     decl["_warnings"] = warnings
     decl["_path"] = str(path)
     return decl
@@ -169,26 +181,39 @@ def _store_result(folder: Path, name: str, key: str, res: PaperResult) -> None:
 
 
 def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quick: bool = False,
-                    log: Callable[[str], None] = lambda s: None, use_cache: bool = True) -> PaperResult:
+                    log: Callable[[str], None] = lambda s: None, use_cache: bool = True,
+                    extended: bool = False) -> PaperResult:
     """Compute one paper's tables and claims and write ``results/<paper>/``.  When nothing the
     result depends on changed (:func:`code_key`), the previous result is re-written from the
-    result cache instead of being recomputed."""
+    result cache instead of being recomputed.  ``extended``: the compute functions also run the studies
+    beyond the paper (:attr:`Context.extended`)."""
+    if quick and extended:
+        raise ValueError("reproduce: --quick and --extended exclude each other")
     decl = load_paper(name)
     paper = decl["paper"]
     out_dir = results_dir / paper
-    key = code_key(paper, str(quick), decl["_path"])
+    key = code_key(paper, str(quick), decl["_path"], "extended" if extended else "")
     if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
         log(f"{paper}: unchanged since the last run, results taken from the cache")
+        runner.stats["result_cache_hits"] = runner.stats.get("result_cache_hits", 0) + 1
         write_paper(hit, out_dir)
         _copy_figures(hit, out_dir)
         return hit
-    ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick)
+    ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick, extended=extended)
     module = importlib.import_module(decl["module"])
     runner.served.clear()
     metrics: dict[str, float] = {}
     t0 = time.perf_counter()
     tables = []
+    # the full run skips the studies beyond the paper (reproduce --extended runs them in full); the quick run (CI)
+    # keeps them, in their light form (Context.quick), so that their code stays under the regression check
+    skipped = [t["id"] for t in decl["tables"] if t.get("extended") and not (extended or quick)]
+    if skipped:
+        ctx.info["extended_tables"] = skipped
     for tab in decl["tables"]:
+        if tab["id"] in skipped:  # a study beyond the paper's tables and headline claims: reproduce --extended
+            log(f"{paper}: {tab['id']} — skipped (reproduce --extended)")
+            continue
         log(f"{paper}: {tab['id']} — {tab.get('title', '')}")
         fn = getattr(module, tab["compute"])
         got = fn(ctx) or {}
@@ -199,7 +224,8 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
             rep = got.get(row["metric"])
             rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row, tab.get("published_on"))})
         tables.append({**tab, "rows_out": rows, "all_metrics": got})
-    claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])]
+    claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])
+              if not any(m.split(".")[0] in skipped for m in claim_metric_ids(c))]
     served = sorted(set(runner.served))
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]

@@ -4,13 +4,16 @@ A run is identified by its *cache key*: the scenario's content hash (every spec 
 overrides), the seed, and the hash of the testbed's source code (``bench/sim/*.py``), so any change
 to the physics invalidates the cache by itself.  Cached runs live in ``.cache/runs/<key>.parquet``
 (written atomically).  ``simulate_many`` returns runs in request order; the testbed is
-deterministic, so serial, ``--workers N`` and Dask give identical runs (tested).
+deterministic, so serial, ``--workers N`` and Dask give identical runs (tested).  The missing runs of one
+scenario whose seeds change the sensor noise only (:func:`bench.sim.physics_seed`) are one job: the physics is
+stepped once and each seed's sensors are drawn from that trace.
 """
 from __future__ import annotations
 
 import functools
 import hashlib
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,17 +36,36 @@ def testbed_code_hash() -> str:
 
 
 def cache_key(scn: Scenario, seed: int) -> str:
+    """The run's identity in the cache: scenario, seed, testbed code and the CPU dispatch the run is made under
+    (:func:`bench.cpu.dispatch_state`: a run of the native dispatch is not served to a pinned process)."""
+    from bench.cpu import dispatch_state
     from bench.sim import scenario_hash
 
-    return hashlib.sha256(f"{scenario_hash(scn)}|{seed}|{testbed_code_hash()}".encode()).hexdigest()[:24]
+    return hashlib.sha256(f"{scenario_hash(scn)}|{seed}|{testbed_code_hash()}|{dispatch_state()}".encode()
+                          ).hexdigest()[:24]
 
 
-def _simulate_to(scn: Scenario, seed: int, path: str) -> str:
-    """Worker: simulate and write the run (atomic); returns the path."""
-    from bench.sim import simulate
+def _simulate_to(scn: Scenario, seeds: Sequence[int], paths: Sequence[str]) -> list[str]:
+    """Worker: simulate the seeds of one scenario that share their physics (:func:`bench.sim.physics_seed`: the
+    trace is stepped once) and write each run (atomic); returns the paths."""
+    from bench.sim import simulate_seeds
 
-    simulate(scn, seed).to_parquet(path)
-    return path
+    for run, path in zip(simulate_seeds(scn, seeds), paths):
+        run.to_parquet(path)
+    return list(paths)
+
+
+def _physics_groups(todo: dict[Path, tuple[Scenario, int]]) -> list[tuple[Scenario, list[int], list[str]]]:
+    """The runs to compute, grouped by what their physics depends on (scenario hash, physics seed), in the
+    order of their first request."""
+    from bench.sim import physics_seed, scenario_hash
+
+    groups: dict[tuple[str, int], tuple[Scenario, list[int], list[str]]] = {}
+    for path, (scn, seed) in todo.items():
+        g = groups.setdefault((scenario_hash(scn), physics_seed(scn, seed)), (scn, [], []))
+        g[1].append(int(seed))
+        g[2].append(str(path))
+    return list(groups.values())
 
 
 @dataclass
@@ -59,8 +81,9 @@ class Runner:
     dask_scheduler: str | None = None
     use_cache: bool = True
     progress: Callable[[int, int], None] | None = None
-    stats: dict = field(default_factory=lambda: {"simulated": 0, "cached": 0})
-    manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})
+    stats: dict = field(default_factory=lambda: {"simulated": 0, "cached": 0, "sim_seconds": 0.0,
+                                                 "result_cache_hits": 0, "stages": {}})
+    manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})  # + cpu_dispatch when served
     served: list = field(default_factory=list)  # (scenario id, seed) of every run handed out
 
     def path_for(self, scn: Scenario, seed: int) -> Path:
@@ -80,7 +103,9 @@ class Runner:
         self.stats["cached"] += len(set(paths)) - len(todo)
         if todo:
             Path(self.cache_dir).mkdir(parents=True, exist_ok=True)
+            t0 = time.perf_counter()
             self._compute(todo)
+            self.stats["sim_seconds"] += time.perf_counter() - t0
             self.stats["simulated"] += len(todo)
         return paths
 
@@ -96,40 +121,40 @@ class Runner:
         from bench.sim import scenario_hash
         from bench.spec import to_dict
 
+        from bench.cpu import dispatch_state
+
         sh = scenario_hash(scn)
+        self.manifest["cpu_dispatch"] = dispatch_state()
         self.manifest["scenarios"].setdefault(sh, to_dict(scn))
         self.served.append((scn.id, int(seed)))
         self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
                                       "content_hash": run.content_hash()}
 
     def _compute(self, todo: dict[Path, tuple[Scenario, int]]) -> None:
-        items = list(todo.items())
+        groups = _physics_groups(todo)
         done = 0
+
+        def tick(n: int) -> None:
+            nonlocal done
+            done += n
+            if self.progress:
+                self.progress(done, len(todo))
+
         if self.dask_scheduler:
             from distributed import Client
 
             with Client(self.dask_scheduler) as client:
-                futures = [client.submit(_simulate_to, s, seed, str(p), pure=False) for p, (s, seed) in items]
+                futures = [client.submit(_simulate_to, *g, pure=False) for g in groups]
                 for fut in futures:
-                    fut.result()
-                    done += 1
-                    if self.progress:
-                        self.progress(done, len(items))
+                    tick(len(fut.result()))
             return
-        if self.workers <= 1 or len(items) == 1:
-            for p, (s, seed) in items:
-                _simulate_to(s, seed, str(p))
-                done += 1
-                if self.progress:
-                    self.progress(done, len(items))
+        if self.workers <= 1 or len(groups) == 1:
+            for g in groups:
+                tick(len(_simulate_to(*g)))
             return
         with ProcessPoolExecutor(max_workers=self.workers) as ex:
-            futures = [ex.submit(_simulate_to, s, seed, str(p)) for p, (s, seed) in items]
-            for fut in futures:
-                fut.result()
-                done += 1
-                if self.progress:
-                    self.progress(done, len(items))
+            for fut in [ex.submit(_simulate_to, *g) for g in groups]:
+                tick(len(fut.result()))
 
 
 def verify_manifest(manifest: dict, workers: int = 1, limit: int | None = None,

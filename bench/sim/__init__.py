@@ -7,7 +7,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from bench.kinematics import icr_inverse
 from bench.run import Run
 from bench.sim import sensors as S
-from bench.sim.commands import wheel_reference
+from bench.sim.commands import SEEDED_COMMANDS, wheel_reference
 from bench.sim.testbed import GRAVITY, PhysicsTrace, run_physics
 from bench.spec import Scenario, to_dict
 
@@ -175,12 +175,35 @@ def assemble_run(tr: PhysicsTrace, scn: Scenario, seed: int) -> Run:
     return Run(pd.DataFrame(cols), meta)
 
 
+def physics_seed(scn: Scenario, seed: int) -> int:
+    """The part of ``seed`` the physics sees: the seed for a command whose wheel references it draws
+    (:data:`bench.sim.commands.SEEDED_COMMANDS`), else 0.  The physics loop has no other random input (the seed
+    draws the sensor noise in :func:`assemble_run`), so runs with equal ``(scenario_hash, physics_seed)`` share one
+    :func:`run_physics` trace, bit for bit (tested)."""
+    return int(seed) if scn.command.kind in SEEDED_COMMANDS else 0
+
+
+def simulate_seeds(scn: Scenario, seeds: Sequence[int]) -> list[Run]:
+    """``[simulate(scn, s) for s in seeds]`` with the physics stepped once per distinct :func:`physics_seed`
+    (identical runs: the sensors of each seed are drawn from the shared trace)."""
+    traces: dict[int, PhysicsTrace] = {}
+    runs = []
+    for seed in seeds:
+        ps = physics_seed(scn, seed)
+        if ps not in traces:
+            if not math.isfinite(scn.duration) or scn.duration <= 0:
+                raise ValueError(f"{scn.source_file}: duration {scn.duration} must be > 0")
+            traces[ps] = run_physics(scn, ps)
+        runs.append(assemble_run(traces[ps], scn, seed))
+    return runs
+
+
 def simulate(scn: Scenario, seed: int = 0, progress: Callable[[float], None] | None = None) -> Run:
     """Simulate a scenario with a seed. Deterministic: same (scenario, seed) -> identical Run."""
     if not math.isfinite(scn.duration) or scn.duration <= 0:
         raise ValueError(f"{scn.source_file}: duration {scn.duration} must be > 0")
-    trace = run_physics(scn, seed, progress)
+    trace = run_physics(scn, physics_seed(scn, seed), progress)
     return assemble_run(trace, scn, seed)
 
 
-__all__ = ["simulate", "run_physics", "assemble_run", "truth_from_trace", "scenario_hash", "TESTBED_VERSION"]
+__all__ = ["simulate", "simulate_seeds", "physics_seed", "run_physics", "assemble_run", "truth_from_trace", "scenario_hash", "TESTBED_VERSION"]

@@ -73,6 +73,9 @@ def _random_profile(t: np.ndarray, cmd: CommandSpec, seed: int) -> tuple[np.ndar
     return v[k], w[k]
 
 
+SEEDED_COMMANDS = frozenset({"random"})  # command kinds whose wheel references depend on the seed (_random_profile)
+
+
 def wheel_reference(t: np.ndarray, cmd: CommandSpec, platform: Platform, seed: int = 0
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Per-side wheel-speed references (rad/s) at times ``t`` (before any acceleration limit)."""

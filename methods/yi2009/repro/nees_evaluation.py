@@ -59,7 +59,7 @@ TOLD_CONFIGS: dict[str, tuple[bool, bool]] = {"told_slip": (True, False), "told_
                                               "told_both": (True, True)}  # (sigma told, white told)
 TOLD_VARIANTS = (1, 3)
 _NEES_KEY = "_yi2009_nees"
-NULL_DRAWS = {True: 50, False: 2000}  # simulated experiments of the NEES null distribution (quick / full): at 2000
+NULL_DRAWS = {True: 50, False: 2000}  # simulated experiments of the NEES null distribution (light / extended): at 2000
 # the smallest two-sided p (0.001) is well below the Bonferroni level 0.05 / 9 (at 400 it was 0.005, and schemes 1 and
 # 2, the same filter in the consistent configuration, got opposite verdicts from two draws)
 NULL_DRAWS_REPLICATION = 1000  # the replication's experiments (full mode): smallest two-sided p (mean) 0.002 and
@@ -69,6 +69,13 @@ NULL_RUN_STREAM, NULL_SHARED_STREAM = 1, 2  # a seed's own noise / the noise sha
 # the key: schemes 1 and 2, the same filter in the consistent configuration, get the same null (Bonferroni stays valid
 # under the dependence between the cells)
 NULL_ALPHA = 0.05  # family-wise level of the null test over the consistent cells (Bonferroni)
+
+
+def nees_light(ctx: Any) -> bool:
+    """True unless ``reproduce --extended``: the study then skips its ablations, the truth-informed attribution and
+    the replication, and draws NULL_DRAWS[True] null experiments (the calibrated test at Bonferroni level needs the
+    2000 of the extended run; the claims nees_consistent / nees_paper rest on the band fractions, not on it)."""
+    return bool(ctx.quick) or not bool(getattr(ctx, "extended", False))
 
 
 def _nees_evaluate(ctx: Any) -> dict[str, Any]:
@@ -81,12 +88,13 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
     if cached is not None:
         return cached
     ev = _evaluate(ctx)
+    light = nees_light(ctx)
     cfg = SETTINGS
     ident_runs = ctx.simulate_many([(_ident_scenario(tr, wl, wr, cfg.ident_duration), cfg.ident_seed0 + i)
                                     for i, (tr, wl, wr) in cfg.ident(ev.quick)])
     calib_runs = ctx.simulate_many([(load_scenario(sid), seed) for sid, seed in cfg.nees_calibration])
     methods = {}
-    ablations = {} if ev.quick else NEES_ABLATIONS
+    ablations = {} if light else NEES_ABLATIONS
     for v in VARIANTS:
         methods[("paper", v)] = registry.calibrate(Yi2009Ekf(variant=v, store_covariance=True), ident_runs)
         s_gamma = methods[("paper", 3)].s_gamma if v == 3 else PUBLISHED_S_GAMMA
@@ -118,7 +126,7 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
             yaw_rate.setdefault(k, []).append(float(np.mean(np.abs(run["truth_wz"][run.t >= run.t[0] + NEES_T_MIN]))))
             row_hf.setdefault(k, []).append(row_high_frequency_error(run))
             row_slip.setdefault(k, []).append(row_slip_error(run, methods[("consistent", 1)]))
-            if not ev.quick:
+            if not light:
                 row_hf_fused.setdefault(k, []).append(row_high_frequency_error(run, model=methods[("consistent", 1)]))
             truth = Trajectory.from_run(run, "truth")
             for (cfg_name, v), m in methods.items():
@@ -129,7 +137,7 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                     rng = np.random.default_rng([NULL_SEED, i_path, NULL_RUN_STREAM, s])
                     shared = np.random.default_rng([NULL_SEED, i_path, NULL_SHARED_STREAM])
                     draws.setdefault(v, []).append(simulate_nees(est.info["lin"], slice(3, 5), est["t"] >= NEES_T_MIN,
-                                                                 NULL_DRAWS[bool(ev.quick)], rng, shared))
+                                                                 NULL_DRAWS[light], rng, shared))
                 if "r_vx" in est.info:  # adaptive R: its median sd after NEES_T_MIN
                     rv = est.info["r_vx"][(est["t"] >= NEES_T_MIN) & np.isfinite(est.info["r_vx"])]
                     if rv.size:
@@ -141,9 +149,9 @@ def _nees_evaluate(ctx: Any) -> dict[str, Any]:
                 diag.setdefault((k, cfg_name, v), []).append(slip_lock_and_roll(run, est))
         for v, sims in draws.items():  # the path's null draws -> the two test statistics per experiment
             null[(k, v)] = NullNees.from_draws(sims, nees_band(len(ev.seeds), 2, SETTINGS.confidence))
-    replication = {} if ev.quick else _nees_replication(ctx, methods, runs, scored)
+    replication = {} if light else _nees_replication(ctx, methods, runs, scored)
     told_levels: dict[str, tuple[float, float]] = {}  # per path: (slow slip, high-frequency row error) [m/s]
-    if not ev.quick:  # truth-informed attribution: the path's own row error levels told to the filter (diagnostic)
+    if not light:  # truth-informed attribution: the path's own row error levels told to the filter (diagnostic)
         slip_rms, hf_rms = _finite_rms(row_slip), _finite_rms(row_hf_fused)
         for k in PATHS:
             if k not in slip_rms or k not in hf_rms:

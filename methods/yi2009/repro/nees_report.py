@@ -17,11 +17,24 @@ from methods.yi2009.consistent.filter import ADAPTIVE_R_FLOOR
 from methods.yi2009.consistent.gauss_markov import GM_NEGLIGIBLE_SIGMA
 from methods.yi2009.ekf import EkfParams
 from methods.yi2009.repro.nees_evaluation import (NEES_ABLATIONS, NULL_ALPHA, NULL_DRAWS, NULL_DRAWS_REPLICATION,
-                                                  TOLD_BASE, TOLD_CONFIGS, TOLD_VARIANTS, _nees_evaluate)
+                                                  TOLD_BASE, TOLD_CONFIGS, TOLD_VARIANTS, _nees_evaluate,
+                                                  nees_light)
 from methods.yi2009.repro.nees_notes import _along_slip_txt, _told_txt, _vy_sigma_txt
 from methods.yi2009.repro.nees_statistics import (NEES_CONFIGS, NEES_T_MIN, _min_p, _null_test, axis_rms, nees_band,
                                                   nees_summary, seed_error_correlation)
 from methods.yi2009.repro.settings import PATHS, SETTINGS, VARIANTS
+
+MC_SHARES = ("rule_pass", "p_in_band", "p_mean")  # the null test's statistics that are shares of its experiments
+
+
+def _mc_tolerance(ctx: Any, shares: dict[str, float], n: int) -> None:
+    """Regression tolerance of Monte-Carlo shares (a p or a pass rate over ``n`` simulated experiments): three of
+    their binomial standard errors sqrt(p (1 - p) / n), plus one experiment (1 / n) for a share at 0 or 1 (in
+    ``results/metrics.json`` through ``ctx.info["metric_tolerance"]``, keyed by the table's metric)."""
+    tol = ctx.info.setdefault("metric_tolerance", {})
+    for key, p in shares.items():
+        tol[f"nees.{key}"] = {"abs": 3.0 * math.sqrt(max(p * (1.0 - p), 0.0) / n) + 1.0 / n, "rel": 0.0}
+
 
 def nees(ctx: Any) -> dict[str, float]:
     """Velocity NEES of the three schemes, paper vs consistent configuration, mean over seeds, against the
@@ -38,8 +51,9 @@ def nees(ctx: Any) -> dict[str, float]:
         out[f"{key}.null_in_band_q05"] = nl.quantile_in_band(0.05)
         stats_ = _null_test(nl, out[f"{key}.in_band"], out[f"{key}.nees"])
         out.update({f"{key}.null_{stat}": x for stat, x in stats_.items()})
+        _mc_tolerance(ctx, {f"{key}.null_{stat}": stats_[stat] for stat in MC_SHARES}, nl.in_band.size)
     out["consistent_null_ok"] = float(bool(nulls) and all(_min_p(out, kv, "null") >= alpha for kv in nulls))
-    out["null_draws"] = float(NULL_DRAWS[bool(ctx.quick)])
+    out["null_draws"] = float(NULL_DRAWS[nees_light(ctx)])
     replication = ne.get("replication", {})
     if replication:
         n_rep = len(SETTINGS.nees_replication_seeds)
@@ -50,6 +64,7 @@ def nees(ctx: Any) -> dict[str, float]:
             out[f"{key}_in_band"] = float(np.mean((avg >= band_rep[0]) & (avg <= band_rep[1])))
             stats_ = _null_test(nl, out[f"{key}_in_band"], out[f"{key}_nees"])
             out.update({f"{key}_{stat}": x for stat, x in stats_.items()})
+            _mc_tolerance(ctx, {f"{key}_{stat}": stats_[stat] for stat in MC_SHARES}, nl.in_band.size)
         out["consistent_rep_ok"] = float(all(_min_p(out, kv, "rep") >= NULL_ALPHA / len(replication)
                                              for kv in replication))
         out["rep_seeds"] = float(n_rep)

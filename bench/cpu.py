@@ -1,0 +1,67 @@
+"""The CPU code paths the numbers are made on: numpy's SIMD dispatch and OpenBLAS's kernel, pinned.
+
+numpy picks, at import, the widest SIMD variant of its loops the CPU has (``__cpu_dispatch__``: on numpy 2.4
+x86-64 wheels X86_V3 = AVX2/FMA3, X86_V4 = AVX-512, AVX512_ICL, AVX512_SPR), and those variants differ in the
+last bits of, e.g., ``np.sin`` and reductions; OpenBLAS (DYNAMIC_ARCH) picks its kernels by CPU model the same
+way.  The testbed feeds numpy-made wheel references into a chaotic contact simulation, so a last-bit difference
+on another CPU became a different run (issue 34: 1 of 46 committed runs re-simulated to the same hash on
+another machine; all 46 with the AVX-512 dispatch disabled).
+
+``skidbench`` therefore re-executes itself once with :func:`pinned_env`: every numpy dispatch target disabled
+(numpy runs its baseline code, the same instructions on every x86-64 CPU that has the baseline, X86_V2 =
+SSE4.2 for numpy 2.4) and OpenBLAS held to its Haswell kernels (on a CPU with AVX2; a CPU without it keeps
+OpenBLAS's own choice, and :func:`dispatch_state` says so).  Processes forked from it (the local pools)
+inherit the pin; a Dask worker started by hand needs the same environment (README).  The run cache key carries
+:func:`dispatch_state`, so a run made under another dispatch is never served to a pinned reproduction.
+``SKIDBENCH_CPU=native`` skips the pin (faster numpy on wide-SIMD CPUs; runs then match only on that CPU).
+"""
+from __future__ import annotations
+
+import os
+import sys
+
+_MARK = "SKIDBENCH_CPU_PINNED"  # set in the re-executed process: never re-execute twice
+
+
+def _numpy_cpu() -> tuple[list[str], dict[str, bool]]:
+    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    return list(__cpu_dispatch__), dict(__cpu_features__)
+
+
+def pinned_env(environ: dict[str, str] | None = None) -> dict[str, str]:
+    """``environ`` (default ``os.environ``) with numpy's dispatch targets disabled and OpenBLAS pinned."""
+    env = dict(os.environ if environ is None else environ)
+    targets, features = _numpy_cpu()
+    env["NPY_DISABLE_CPU_FEATURES"] = " ".join(targets)
+    if features.get("AVX2", False):
+        env["OPENBLAS_CORETYPE"] = "Haswell"
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")  # the matrices are small; the pools already use every core
+    env[_MARK] = "1"
+    return env
+
+
+def dispatch_state() -> str:
+    """``"baseline"`` when no numpy dispatch target is active in this process (pinned, or a CPU without any)
+    and OpenBLAS is pinned or irrelevant; else ``"native:<active targets>"``."""
+    targets, features = _numpy_cpu()
+    active = [t for t in targets if features.get(t, False)]
+    if active:
+        return "native:" + "+".join(active)
+    if features.get("AVX2", False) and os.environ.get("OPENBLAS_CORETYPE", "").lower() != "haswell":
+        return "native:openblas"
+    return "baseline"
+
+
+def reexec_pinned(argv: list[str] | None = None) -> None:
+    """Replace this process by ``python -m bench.cli <argv>`` under :func:`pinned_env`, unless it is pinned
+    already, was re-executed once (:data:`_MARK`) or ``SKIDBENCH_CPU=native``.  Returns only when it does not
+    re-execute."""
+    if os.environ.get("SKIDBENCH_CPU", "").lower() == "native" or os.environ.get(_MARK):
+        return
+    if dispatch_state() == "baseline":
+        return
+    args = sys.argv[1:] if argv is None else argv
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execve(sys.executable, [sys.executable, "-m", "bench.cli", *args], pinned_env())

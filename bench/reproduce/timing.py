@@ -1,0 +1,115 @@
+"""Where the time of a reproduction goes: one row per stage (each paper, with its simulation time, and each extra:
+real, league, gap, stress), this run's and the last cold run's, in ``results/timing.json`` and in REPORT.md's
+header (between two HTML comments, so a rerun replaces the section).
+
+A run is *cold* when it computed everything: the run cache was empty at its start and no paper or extra was taken
+from the result cache.  ``timing.json`` keeps the last cold run's table beside the current one, so the committed report shows both
+when it was written from the caches (warm).
+"""
+from __future__ import annotations
+
+import json
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any, Mapping
+
+from bench.report.io import atomic_write_json, atomic_write_text
+from bench.reproduce.provenance import git_commit
+
+BEGIN, END = "<!-- timing: begin -->", "<!-- timing: end -->"
+
+
+def _file(results_dir: Path, quick: bool) -> Path:
+    return Path(results_dir) / ("timing_quick.json" if quick else "timing.json")
+
+
+def record(results_dir: Path, quick: bool, stages: Mapping[str, Mapping[str, Any]], wall: float,
+           simulated: int, cached: int, workers: int, cache_was_empty: bool) -> dict[str, Any]:
+    """Write ``timing.json`` with this run (``stages``: name -> seconds, simulation_seconds, from_cache) and the
+    last cold run (this one when it is cold: the run cache was empty at its start and no stage came from the result
+    cache; ``cached`` then counts the runs asked for twice); return the document."""
+    run = {"commit": git_commit(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+           "wall_seconds": round(wall, 1), "workers": workers, "runs_simulated": simulated, "runs_cached": cached,
+           "stages": {k: {"seconds": round(float(v["seconds"]), 1),
+                          "simulation_seconds": round(float(v.get("simulation_seconds", 0.0)), 1),
+                          "from_cache": bool(v.get("from_cache", False))} for k, v in stages.items()}}
+    run["cold"] = bool(cache_was_empty) and not any(v["from_cache"] for v in run["stages"].values())
+    path = _file(results_dir, quick)
+    old: dict[str, Any] = {}
+    if path.is_file():
+        try:
+            old = json.loads(path.read_text())
+        except ValueError:
+            old = {}
+    doc = {"this_run": run, "last_cold": run if run["cold"] else old.get("last_cold")}
+    atomic_write_json(path, doc)
+    _annotate_history(Path(results_dir), run)
+    return doc
+
+
+def _annotate_history(results_dir: Path, run: Mapping[str, Any]) -> None:
+    """Add the stage seconds and the cold flag to the last line of ``history.jsonl`` (written by the same
+    reproduce, before its extras ran) for the dashboard's speed page; nothing when that line is another commit's."""
+    from bench.report.io import dumps_json
+    from bench.reproduce.report import history_path
+
+    path = history_path(results_dir)
+    if not path.is_file():
+        return
+    lines = path.read_text().splitlines()
+    while lines and not lines[-1].strip():
+        lines.pop()
+    if not lines:
+        return
+    try:
+        last = json.loads(lines[-1])
+    except ValueError:
+        return
+    if last.get("commit") != run["commit"]:
+        return
+    last["stages"] = {k: v["seconds"] for k, v in run["stages"].items()}
+    last["cold"] = run["cold"]
+    lines[-1] = dumps_json(last, sort_keys=True)
+    atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def table(doc: Mapping[str, Any]) -> list[str]:
+    """The stage table (markdown lines)."""
+    run, cold = doc["this_run"], doc.get("last_cold") or {}
+    names = list(run["stages"]) + [k for k in cold.get("stages", {}) if k not in run["stages"]]
+
+    def sec(r: Mapping[str, Any], k: str, key: str = "seconds") -> str:
+        st = r.get("stages", {}).get(k)
+        if st is None:
+            return "—"
+        return f"{st[key]:.1f}" + (" (cache)" if key == "seconds" and st["from_cache"] else "")
+
+    when = (f"last cold run: commit `{cold['commit'][:12]}`, {cold['date']}, {cold['workers']} workers, "
+            f"{cold['runs_simulated']} runs simulated" if cold else "no cold run recorded yet")
+    lines = ["## Where the time goes", "",
+             f"This run: {run['wall_seconds']:.1f} s wall on {run['workers']} workers, {run['runs_simulated']} runs "
+             f"simulated, {run['runs_cached']} served again from the run cache ({'cold' if run['cold'] else 'warm'}); {when}. "
+             "Seconds per stage (the papers run side by side on the workers, so their sum exceeds the wall time; "
+             "simulation: the part of a paper's time spent stepping the testbed).", "",
+             "| stage | this run [s] | of it simulation [s] | last cold run [s] | of it simulation [s] |",
+             "|---|---|---|---|---|"]
+    for k in names:
+        lines.append(f"| {k} | {sec(run, k)} | {sec(run, k, 'simulation_seconds')} | {sec(cold, k)} "
+                     f"| {sec(cold, k, 'simulation_seconds')} |")
+    lines.append(f"| **wall time** | **{run['wall_seconds']:.1f}** | | **{cold['wall_seconds']:.1f}** | |"
+                 if cold else f"| **wall time** | **{run['wall_seconds']:.1f}** | | — | |")
+    return lines
+
+
+def insert(report: Path, doc: Mapping[str, Any]) -> None:
+    """Put (or replace) the stage table in ``report`` after its header paragraph (before the headline claims)."""
+    if not report.is_file():
+        return
+    text = report.read_text()
+    if BEGIN in text and END in text:
+        head, _, rest = text.partition(BEGIN)
+        text = head + rest.partition(END)[2].lstrip("\n")
+    section = "\n".join([BEGIN, *table(doc), END, "", ""])
+    at = text.find("## Headline claims")
+    text = text[:at] + section + text[at:] if at >= 0 else text + "\n" + section
+    atomic_write_text(report, text)

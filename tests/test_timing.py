@@ -1,0 +1,69 @@
+"""The stage table of a reproduction (bench.reproduce.timing), the --extended switch and what it moves."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from bench.reproduce import timing
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _stages(seconds: float, from_cache: bool = False) -> dict:
+    return {"mandow2007": {"seconds": seconds, "simulation_seconds": seconds / 4, "from_cache": from_cache},
+            "league": {"seconds": 2 * seconds, "from_cache": from_cache}}
+
+
+def test_a_warm_run_keeps_the_last_cold_table(tmp_path):
+    cold = timing.record(tmp_path, False, _stages(100.0), 250.0, 300, 4, workers=2, cache_was_empty=True)
+    assert cold["this_run"]["cold"] and cold["last_cold"] == cold["this_run"]
+    warm = timing.record(tmp_path, False, _stages(1.0, True), 3.0, 0, 300, workers=2, cache_was_empty=False)
+    assert not warm["this_run"]["cold"]
+    assert warm["last_cold"]["wall_seconds"] == 250.0  # read back from timing.json
+    assert json.loads((tmp_path / "timing.json").read_text())["last_cold"]["stages"]["league"]["seconds"] == 200.0
+    rows = {line.split(" | ")[0].strip("| "): line for line in timing.table(warm) if line.startswith("| ")}
+    assert "1.0 (cache)" in rows["mandow2007"] and "100.0" in rows["mandow2007"] and "25.0" in rows["mandow2007"]
+    # a run with a filled run cache is not cold, even when nothing came from the result cache
+    again = timing.record(tmp_path, False, _stages(5.0), 9.0, 0, 300, workers=2, cache_was_empty=False)
+    assert not again["this_run"]["cold"] and again["last_cold"]["wall_seconds"] == 250.0
+
+
+def test_the_stage_table_goes_before_the_headline_claims_once(tmp_path):
+    report = tmp_path / "REPORT.md"
+    report.write_text("# report\n\nheader\n\n## Headline claims\n\n| a |\n")
+    doc = timing.record(tmp_path, False, _stages(10.0), 30.0, 5, 0, workers=2, cache_was_empty=True)
+    timing.insert(report, doc)
+    timing.insert(report, doc)
+    text = report.read_text()
+    assert text.count("## Where the time goes") == 1
+    assert text.index("## Where the time goes") < text.index("## Headline claims")
+
+
+def test_quick_and_extended_exclude_each_other():
+    r = subprocess.run([sys.executable, "-m", "bench.cli", "reproduce", "yu2010", "--quick", "--extended"], cwd=REPO,
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "exclude each other" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_the_league_shows_the_papers_configurations_and_extended_adds_skidbench_own():
+    from bench import registry
+    from bench.reproduce.league import league_methods
+
+    every, default = league_methods(extended=True), league_methods()
+    beyond = set(every) - set(default)
+    assert beyond and all(registry.get(n).beyond_paper for n in beyond)
+    assert all(n.endswith("_consistent") for n in beyond)  # the consistent configurations of Yi and Liu
+    assert {"liu2020.mi_ukf", "yi2009.ekf_v3", "mandow2007.asymmetric_ga"} <= set(default)
+
+
+def test_the_nees_study_is_light_unless_extended():
+    from types import SimpleNamespace
+
+    from methods.yi2009.repro.nees_evaluation import NULL_DRAWS, nees_light
+
+    assert nees_light(SimpleNamespace(quick=False, extended=False))
+    assert nees_light(SimpleNamespace(quick=True, extended=False))
+    assert not nees_light(SimpleNamespace(quick=False, extended=True))
+    assert NULL_DRAWS[False] >= 2000 > NULL_DRAWS[True]
