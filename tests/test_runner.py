@@ -124,3 +124,21 @@ def test_only_seeded_command_kinds_change_the_wheel_references():
         moved = not (np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1]))
         assert moved == (kind in SEEDED_COMMANDS), kind
     assert SEEDED_COMMANDS <= seen
+
+
+def test_league_jobs_read_each_scenario_once_per_part_and_cover_every_cell():
+    """_jobs deals a scenario's methods into at most `workers` parts of similar cost; every cell exactly once."""
+    from bench.reproduce.league import CELL_COST, _jobs
+
+    names = list(CELL_COST) + ["baseline.ideal_dd", "wang2015.constant_chi"]
+    pairs = [(n, s) for s in ("a", "b", "c") for n in names]
+    jobs = _jobs(pairs, 2)
+    cells = [(n, s) for names_, s in jobs for n in names_]
+    assert sorted(cells) == sorted(pairs)
+    for s in ("a", "b", "c"):
+        parts = [names_ for names_, s_ in jobs if s_ == s]
+        assert len(parts) == 2
+        costs = sorted(sum(CELL_COST.get(n, 0.5) for n in p) for p in parts)
+        assert costs[1] - costs[0] <= max(CELL_COST.values())  # greedy: within one cell's cost
+    cost = [sum(CELL_COST.get(n, 0.5) for n in names_) for names_, _ in jobs]
+    assert cost == sorted(cost, reverse=True)

@@ -144,18 +144,38 @@ def _cell(name: str, sname: str, cal: list, scored: list) -> Cell:
     return cell
 
 
-def _cell_job(name: str, sname: str, quick: bool, n_seeds: int, cache_dir: str) -> Cell:
+def _cell_job(names: tuple[str, ...], sname: str, quick: bool, n_seeds: int, cache_dir: str) -> list[Cell]:
+    """Worker: the cells of ``names`` on one scenario (its runs read from the run cache once for all of them)."""
     cal, scored = _cached_runs(sname, quick, n_seeds, cache_dir)
-    return _cell(name, sname, cal, scored)
+    return [_cell(name, sname, cal, scored) for name in names]
 
 
-# Relative cost of a cell (calibration + 5 estimates, measured on yi_figure8: the UKFs ~20 s, the GA
-# ~25 s, the EKFs ~3-5 s, the rest < 1 s): parallel jobs are submitted most expensive first.
-CELL_COST = {"liu2020.mi_ukf": 20.0, "liu2020.ukf_icr": 20.0, "liu2020.mi_ukf_consistent": 20.0,
-             "liu2020.ukf_icr_consistent": 20.0, "mandow2007.asymmetric_ga": 25.0,
-             "mandow2007.asymmetric_de": 8.0, "yi2009.ekf_v1": 4.0, "yi2009.ekf_v2": 4.0, "yi2009.ekf_v3": 4.0,
-             "yi2009.ekf_v1_consistent": 12.0, "yi2009.ekf_v2_consistent": 12.0, "yi2009.ekf_v3_consistent": 12.0,
-             "yu2010.closed_loop": 1.5, "yu2010.open_loop": 1.5}
+# Relative cost of a cell (calibration + 5 estimates; measured on yi_figure8, seconds on one core: the paper UKFs
+# ~6 s, their consistent configurations 28-39 s, the GA ~11 s, the EKFs ~1.3 s, their consistent ones 3-5 s, the
+# rest < 1 s; a scenario's 13 runs take ~2.5 s to read, once per job): jobs are submitted most expensive first.
+CELL_COST = {"liu2020.mi_ukf": 6.0, "liu2020.ukf_icr": 6.0, "liu2020.mi_ukf_consistent": 38.0,
+             "liu2020.ukf_icr_consistent": 28.0, "mandow2007.asymmetric_ga": 11.0,
+             "mandow2007.asymmetric_de": 3.0, "yi2009.ekf_v1": 1.3, "yi2009.ekf_v2": 1.3, "yi2009.ekf_v3": 1.3,
+             "yi2009.ekf_v1_consistent": 3.0, "yi2009.ekf_v2_consistent": 4.0, "yi2009.ekf_v3_consistent": 4.5,
+             "yu2010.closed_loop": 1.2, "yu2010.open_loop": 1.2}
+
+
+def _jobs(pairs: list[tuple[str, str]], workers: int) -> list[tuple[tuple[str, ...], str]]:
+    """The cells grouped into jobs: per scenario, its methods dealt into ``workers`` parts of about equal cost
+    (most expensive first), so that a job reads its scenario's runs once (a job per cell read them per cell:
+    the parquet reads were a large part of the league's time); jobs ordered most expensive first."""
+    by_scenario: dict[str, list[str]] = {}
+    for name, sname in pairs:
+        by_scenario.setdefault(sname, []).append(name)
+    jobs: list[tuple[float, tuple[str, ...], str]] = []
+    for sname, names in by_scenario.items():
+        parts: list[tuple[float, list[str]]] = [(0.0, []) for _ in range(max(1, workers))]
+        for name in sorted(names, key=lambda n: -CELL_COST.get(n, 0.5)):
+            i = min(range(len(parts)), key=lambda j: parts[j][0])
+            parts[i] = (parts[i][0] + CELL_COST.get(name, 0.5), parts[i][1] + [name])
+        jobs += [(cost, tuple(names_), sname) for cost, names_ in parts if names_]
+    jobs.sort(key=lambda j: -j[0])
+    return [(names_, sname) for _, names_, sname in jobs]
 
 
 def league_methods(extended: bool = False) -> list[str]:
@@ -187,10 +207,11 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
         log(f"league: {sname} ({len(cal)} calibration runs, {len(scored)} scored)")
     if not parallel:
         return [_cell(name, sname, *runs[sname]) for name, sname in pairs]
-    order = sorted(range(len(pairs)), key=lambda i: -CELL_COST.get(pairs[i][0], 0.5))
     with ProcessPoolExecutor(max_workers=runner.workers) as ex:
-        futures = {i: ex.submit(_cell_job, *pairs[i], quick, seeds, str(runner.cache_dir)) for i in order}
-        cells = [futures[i].result() for i in range(len(pairs))]
+        futures = [ex.submit(_cell_job, names_, sname, quick, seeds, str(runner.cache_dir))
+                   for names_, sname in _jobs(pairs, runner.workers)]
+        got = {(c.method, c.scenario): c for fut in futures for c in fut.result()}
+    cells = [got[pair] for pair in pairs]
     log(f"league: {len(cells)} cells on {runner.workers} workers")
     return cells
 

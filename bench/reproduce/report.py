@@ -308,6 +308,25 @@ def _counts(claims: list[Mapping[str, Any]], causes: bool = True) -> str:
     return "; ".join(parts)
 
 
+def _extended_verdicts(results_dir: Path, res: PaperResult) -> str:
+    """The verdicts of the claims that rest on a paper's extended tables, as the last extended run
+    (``results/extended/claims.json``) gave them: a default report must not hide a failing check by leaving it out."""
+    from bench.reproduce.claims import claim_metric_ids
+
+    skipped = set(res.info.get("extended_tables", ()))
+    ids = [c["id"] for c in res.decl.get("claims", [])
+           if any(m.split(".")[0] in skipped for m in claim_metric_ids(c))]
+    path = Path(results_dir) / "extended" / "claims.json"
+    try:
+        got = json.loads(path.read_text())["claims"]
+    except (OSError, ValueError, KeyError):
+        return f"their claims ({', '.join(ids)}) have no extended run yet" if ids else "no claim rests on them"
+    parts = [f"{cid} **{got[f'{res.paper}.{cid}']['verdict']}**" if f"{res.paper}.{cid}" in got else f"{cid} not run"
+             for cid in ids]
+    commit = json.loads(path.read_text()).get("commit", "?")[:12]
+    return f"their claims in the last extended run (commit `{commit}`): {', '.join(parts)}" if parts else ""
+
+
 def write_report(results: list[PaperResult], results_dir: Path, quick: bool, runner: Runner, seconds: float,
                  extended: bool = False) -> Path:
     from bench.cpu import dispatch_state
@@ -344,7 +363,8 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
                   f"- checks beyond the paper ({len(g['beyond'])}): {_counts(g['beyond'], causes=False)}"]
         if res.info.get("extended_tables"):
             lines.append(f"- studies beyond the paper run by `skidbench reproduce --extended` only "
-                         f"([results/extended/](extended/REPORT.md)): {', '.join(res.info['extended_tables'])}")
+                         f"([results/extended/](extended/REPORT.md)): {', '.join(res.info['extended_tables'])}; "
+                         + _extended_verdicts(results_dir, res))
         targets = [f"{c['id']} ({', '.join(p['parameter'] for p in c.get('calibration', []))})"
                    for c in res.claims if c.get("verdict") == "calibration target"]
         if targets:

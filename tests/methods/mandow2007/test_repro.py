@@ -114,3 +114,7 @@ def test_calibration_and_scoring_runs_differ(results):
     for method, calib in winfo["calibration_runs"].items():
         assert not scored & set(calib), method
 
+
+# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
+# --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("mandow_wang_quick_reproductions")
