@@ -10,7 +10,7 @@ another machine; all 46 with the AVX-512 dispatch disabled).
 ``skidbench`` therefore re-executes itself once with :func:`pinned_env`: every numpy dispatch target disabled
 (numpy runs its baseline code, the same instructions on every x86-64 CPU that has the baseline, X86_V2 =
 SSE4.2 for numpy 2.4) and OpenBLAS held to its Haswell kernels (on a CPU with AVX2; a CPU without it keeps
-OpenBLAS's own choice, and :func:`dispatch_state` says so).  Processes forked from it (the local pools)
+OpenBLAS's own choice, and :func:`dispatch_state` says ``native:openblas``).  Processes forked from it (the local pools)
 inherit the pin; a Dask worker started by hand needs the same environment (README).  The run cache key carries
 :func:`dispatch_state`, so a run made under another dispatch is never served to a pinned reproduction.
 ``SKIDBENCH_CPU=native`` skips the pin (faster numpy on wide-SIMD CPUs; runs then match only on that CPU).
@@ -32,6 +32,7 @@ def _numpy_cpu() -> tuple[list[str], dict[str, bool]]:
 def pinned_env(environ: dict[str, str] | None = None) -> dict[str, str]:
     """``environ`` (default ``os.environ``) with numpy's dispatch targets disabled and OpenBLAS pinned."""
     env = dict(os.environ if environ is None else environ)
+    env.pop("NPY_ENABLE_CPU_FEATURES", None)  # numpy refuses to import with both variables set
     targets, features = _numpy_cpu()
     env["NPY_DISABLE_CPU_FEATURES"] = " ".join(targets)
     if features.get("AVX2", False):
@@ -48,20 +49,28 @@ def dispatch_state() -> str:
     active = [t for t in targets if features.get(t, False)]
     if active:
         return "native:" + "+".join(active)
-    if features.get("AVX2", False) and os.environ.get("OPENBLAS_CORETYPE", "").lower() != "haswell":
-        return "native:openblas"
+    if os.environ.get("OPENBLAS_CORETYPE", "").lower() != "haswell":
+        return "native:openblas"  # OpenBLAS picks its kernel by CPU model (a CPU without AVX2 cannot be pinned here)
     return "baseline"
 
 
 def reexec_pinned(argv: list[str] | None = None) -> None:
-    """Replace this process by ``python -m bench.cli <argv>`` under :func:`pinned_env`, unless it is pinned
+    """Replace this process by this package's ``bench.cli`` main with ``argv`` (the interpreter's flags kept) under
+    :func:`pinned_env`, unless it is pinned
     already, was re-executed once (:data:`_MARK`) or ``SKIDBENCH_CPU=native``.  Returns only when it does not
     re-execute."""
     if os.environ.get("SKIDBENCH_CPU", "").lower() == "native" or os.environ.get(_MARK):
         return
     if dispatch_state() == "baseline":
         return
+    import subprocess
+    from pathlib import Path
+
     args = sys.argv[1:] if argv is None else argv
+    # the package that is running, not whatever `bench/` the working directory holds (`-m` would put it first)
+    root = str(Path(__file__).resolve().parents[1])
+    code = f"import sys; sys.path.insert(0, {root!r}); from bench.cli import main; sys.exit(main())"
     sys.stdout.flush()
     sys.stderr.flush()
-    os.execve(sys.executable, [sys.executable, "-m", "bench.cli", *args], pinned_env())
+    os.execve(sys.executable, [sys.executable, *subprocess._args_from_interpreter_flags(), "-c", code, *args],
+              pinned_env())

@@ -45,7 +45,7 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
                    help="only check the paper declarations and list their warnings (no run; exit 2 on an error)")
 
 
-EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int, extended: bool)
+EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int[, extended: bool])
 EXTENDED_EXTRAS = ("league",)  # the extras with an extended variant (`reproduce --extended --all` runs them)
 
 
@@ -130,8 +130,14 @@ def _reproduce(a: argparse.Namespace) -> int:
         print(f"{len(checked)} paper declaration(s) checked: no error, {len(warnings)} warning(s)")
         return 0
     _remove_stale_temp_files(results_dir)
-    if extended and papers is None and (a.all or not a.papers):  # the papers that have a study beyond them
-        papers = [p for p in R.list_papers() if any(t.get("extended") for t in R.load_paper(p)["tables"])]
+    if extended:
+        having = [p for p in R.list_papers() if any(t.get("extended") for t in R.load_paper(p)["tables"])]
+        if papers is not None and (none := [p for p in papers if p not in having]):
+            print(f"error: reproduce --extended: {', '.join(none)} has no extended table (papers that have one: "
+                  f"{', '.join(having) or 'none'})", file=sys.stderr)
+            return 2
+        if papers is None and (a.all or not a.papers):  # the papers that have a study beyond them
+            papers = having  # [] when none has one: then no paper runs
     extras = [p for p in a.papers if p in EXTRAS]
     if a.all or not a.papers:
         extras = list(EXTENDED_EXTRAS if extended else EXTRAS)
@@ -154,7 +160,7 @@ def _reproduce(a: argparse.Namespace) -> int:
         def log(msg: str) -> None:
             prog.console.print(msg)
 
-        if papers is not None or a.all or not a.papers:
+        if papers != [] and (papers is not None or a.all or not a.papers):
             runner_stats: dict[str, Any] = {}
             R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
                         results_dir=results_dir, log=log, progress=progress, extended=extended,
@@ -181,7 +187,7 @@ def _reproduce(a: argparse.Namespace) -> int:
         from bench.reproduce import timing
 
         doc = timing.record(Path(results_dir), a.quick, stages, wall, stats["simulated"], stats["cached"], a.workers,
-                            cache_was_empty)
+                            cache_was_empty, extended)
         timing.insert(Path(results_dir) / ("REPORT_quick.md" if a.quick else "REPORT.md"), doc)
     print(f"reproduce finished in {wall:.1f} s -> {results_dir}")
     return 0

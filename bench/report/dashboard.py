@@ -111,6 +111,8 @@ def load_history(path: str | Path) -> list[Entry]:
                 raise SpecError(path, f"line {lineno}: {key}", None, "required field is missing")
         if not isinstance(obj["metrics"], dict):
             raise SpecError(path, f"line {lineno}: metrics", obj["metrics"], "an object {metric id: number}")
+        if obj.get("extended"):
+            continue  # reproduce --extended: other tables and league than the full runs' series (results/extended/)
         # null is a metric without a value (NaN, as the old writer wrote it): kept, so "became NaN" is seen
         metrics = {str(k): v for k, v in ((k, math.nan if v is None else _num(v)) for k, v in obj["metrics"].items())
                    if v is not None}

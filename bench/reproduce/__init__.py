@@ -122,7 +122,7 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     write_documents(results, results_dir, quick)
     atomic_write_json(results_dir / f"runs_manifest{suffix}.json", runner.manifest)
     write_report(results, results_dir, quick, runner, seconds, extended)
-    append_history(results_dir, results, quick, seconds)
+    append_history(results_dir, results, quick, seconds, extended)
     if stats_out is not None:
         stats_out.update(runner.stats)
     return results
@@ -174,7 +174,10 @@ def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, qu
     order = sorted(papers, key=lambda p: rank.get(p, len(rank)))
     done: dict[str, PaperResult] = {}
     with ProcessPoolExecutor(max_workers=runner.workers) as ex:
-        futures = {ex.submit(_paper_job, p, results_dir, quick, runner.cache_dir, extended, runner.workers): p
+        # each job's simulation pool: at least 2 (a job whose time is simulation fills the core the other jobs
+        # leave idle), else the cores shared among the concurrent jobs (no workers x workers processes)
+        sim_workers = min(runner.workers, max(2, runner.workers // min(runner.workers, len(papers))))
+        futures = {ex.submit(_paper_job, p, results_dir, quick, runner.cache_dir, extended, sim_workers): p
                    for p in order}
         for fut in as_completed(futures):
             res, manifest, stats = fut.result()

@@ -190,8 +190,8 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
                scenarios: tuple[str, ...] = LEAGUE_SCENARIOS, log: Callable[[str], None] = lambda s: None,
                extended: bool = False) -> list[Cell]:
     """Every method on every scenario.  The runs are simulated first (through ``runner``: cache,
-    pool or Dask); then, with ``runner.workers > 1``, the cells (method x scenario) run as jobs in a
-    process pool, most expensive first.  Each cell is deterministic and independent of the others,
+    pool or Dask); then, with ``runner.workers > 1``, the cells (method x scenario) run in a process pool as
+    jobs of one scenario each (:func:`_jobs`), most expensive first.  Each cell is deterministic and independent of the others,
     so the table is the same bytes serial or parallel (tested)."""
     names = methods or league_methods(extended)
     seeds = 2 if quick else n_seeds

@@ -362,9 +362,10 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
                   f"- other claims of the paper ({len(g['other'])}): {_counts(g['other'])}",
                   f"- checks beyond the paper ({len(g['beyond'])}): {_counts(g['beyond'], causes=False)}"]
         if res.info.get("extended_tables"):
+            verdicts = _extended_verdicts(results_dir, res)
             lines.append(f"- studies beyond the paper run by `skidbench reproduce --extended` only "
-                         f"([results/extended/](extended/REPORT.md)): {', '.join(res.info['extended_tables'])}; "
-                         + _extended_verdicts(results_dir, res))
+                         f"([results/extended/](extended/REPORT.md)): {', '.join(res.info['extended_tables'])}"
+                         + (f"; {verdicts}" if verdicts else ""))
         targets = [f"{c['id']} ({', '.join(p['parameter'] for p in c.get('calibration', []))})"
                    for c in res.claims if c.get("verdict") == "calibration target"]
         if targets:
@@ -422,11 +423,13 @@ def history_path(results_dir: Path) -> Path:
     return (results if sub in (results / "quick", results / "extended") else Path(results_dir)) / "history.jsonl"
 
 
-def append_history(results_dir: Path, results: list[PaperResult], quick: bool, seconds: float) -> None:
-    """One JSON line per reproduce: commit, date, metrics, wall time (read by the dashboard)."""
+def append_history(results_dir: Path, results: list[PaperResult], quick: bool, seconds: float,
+                   extended: bool = False) -> None:
+    """One JSON line per reproduce: commit, date, mode, metrics, wall time (read by the dashboard, which leaves the
+    extended runs out: their papers and league differ from the full run's)."""
     entry = {
         "commit": git_commit(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "quick": quick, "seconds": round(seconds, 3),
+        "quick": quick, "extended": extended, "seconds": round(seconds, 3),
         "metrics": {f"{r.paper}.{k}": v for r in results for k, v in r.metrics.items() if isinstance(v, (int, float))},
     }
     bench_json = REPO / ".benchmarks" / "latest.json"

@@ -45,14 +45,16 @@ def cache_key(scn: Scenario, seed: int) -> str:
                           ).hexdigest()[:24]
 
 
-def _simulate_to(scn: Scenario, seeds: Sequence[int], paths: Sequence[str]) -> list[str]:
+def _simulate_to(scn: Scenario, seeds: Sequence[int], paths: Sequence[str]) -> tuple[list[str], str]:
     """Worker: simulate the seeds of one scenario that share their physics (:func:`bench.sim.physics_seed`: the
-    trace is stepped once) and write each run (atomic); returns the paths."""
+    trace is stepped once) and write each run (atomic); returns the paths and the worker's CPU dispatch
+    (:func:`bench.cpu.dispatch_state`), which must be the one the cache keys were made with."""
+    from bench.cpu import dispatch_state
     from bench.sim import simulate_seeds
 
     for run, path in zip(simulate_seeds(scn, seeds), paths):
         run.to_parquet(path)
-    return list(paths)
+    return list(paths), dispatch_state()
 
 
 def _physics_groups(todo: dict[Path, tuple[Scenario, int]]) -> list[tuple[Scenario, list[int], list[str]]]:
@@ -131,12 +133,21 @@ class Runner:
                                       "content_hash": run.content_hash()}
 
     def _compute(self, todo: dict[Path, tuple[Scenario, int]]) -> None:
+        from bench.cpu import dispatch_state
+
         groups = _physics_groups(todo)
         done = 0
+        mine = dispatch_state()
 
-        def tick(n: int) -> None:
+        def tick(result: tuple[list[str], str]) -> None:
             nonlocal done
-            done += n
+            paths, state = result
+            if state != mine:  # e.g. an unpinned Dask worker: its runs would sit under this process's keys
+                for p in paths:
+                    Path(p).unlink(missing_ok=True)
+                raise RuntimeError(f"a simulation worker ran under CPU dispatch {state}, this process under {mine}: "
+                                   "start the workers with bench.cpu.pinned_env() (README) or set SKIDBENCH_CPU=native")
+            done += len(paths)
             if self.progress:
                 self.progress(done, len(todo))
 
@@ -146,15 +157,15 @@ class Runner:
             with Client(self.dask_scheduler) as client:
                 futures = [client.submit(_simulate_to, *g, pure=False) for g in groups]
                 for fut in futures:
-                    tick(len(fut.result()))
+                    tick(fut.result())
             return
         if self.workers <= 1 or len(groups) == 1:
             for g in groups:
-                tick(len(_simulate_to(*g)))
+                tick(_simulate_to(*g))
             return
         with ProcessPoolExecutor(max_workers=self.workers) as ex:
             for fut in [ex.submit(_simulate_to, *g) for g in groups]:
-                tick(len(fut.result()))
+                tick(fut.result())
 
 
 def verify_manifest(manifest: dict, workers: int = 1, limit: int | None = None,

@@ -24,14 +24,15 @@ def _file(results_dir: Path, quick: bool) -> Path:
 
 
 def record(results_dir: Path, quick: bool, stages: Mapping[str, Mapping[str, Any]], wall: float,
-           simulated: int, cached: int, workers: int, cache_was_empty: bool) -> dict[str, Any]:
+           simulated: int, cached: int, workers: int, cache_was_empty: bool, extended: bool = False) -> dict[str, Any]:
     """Write ``timing.json`` with this run (``stages``: name -> seconds, simulation_seconds, from_cache) and the
     last cold run (this one when it is cold: the run cache was empty at its start and no stage came from the result
     cache; ``cached`` then counts the runs asked for twice); return the document."""
     run = {"commit": git_commit(), "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
            "wall_seconds": round(wall, 1), "workers": workers, "runs_simulated": simulated, "runs_cached": cached,
            "stages": {k: {"seconds": round(float(v["seconds"]), 1),
-                          "simulation_seconds": round(float(v.get("simulation_seconds", 0.0)), 1),
+                          "simulation_seconds": (round(float(v["simulation_seconds"]), 1)
+                                                 if v.get("simulation_seconds") is not None else None),
                           "from_cache": bool(v.get("from_cache", False))} for k, v in stages.items()}}
     run["cold"] = bool(cache_was_empty) and not any(v["from_cache"] for v in run["stages"].values())
     path = _file(results_dir, quick)
@@ -43,13 +44,14 @@ def record(results_dir: Path, quick: bool, stages: Mapping[str, Mapping[str, Any
             old = {}
     doc = {"this_run": run, "last_cold": run if run["cold"] else old.get("last_cold")}
     atomic_write_json(path, doc)
-    _annotate_history(Path(results_dir), run)
+    _annotate_history(Path(results_dir), run, quick, extended)
     return doc
 
 
-def _annotate_history(results_dir: Path, run: Mapping[str, Any]) -> None:
+def _annotate_history(results_dir: Path, run: Mapping[str, Any], quick: bool, extended: bool) -> None:
     """Add the stage seconds and the cold flag to the last line of ``history.jsonl`` (written by the same
-    reproduce, before its extras ran) for the dashboard's speed page; nothing when that line is another commit's."""
+    reproduce, before its extras ran) for the dashboard's speed page; nothing when that line is another commit's
+    or another mode's."""
     from bench.report.io import dumps_json
     from bench.reproduce.report import history_path
 
@@ -65,7 +67,7 @@ def _annotate_history(results_dir: Path, run: Mapping[str, Any]) -> None:
         last = json.loads(lines[-1])
     except ValueError:
         return
-    if last.get("commit") != run["commit"]:
+    if (last.get("commit"), bool(last.get("quick")), bool(last.get("extended"))) != (run["commit"], quick, extended):
         return
     last["stages"] = {k: v["seconds"] for k, v in run["stages"].items()}
     last["cold"] = run["cold"]
@@ -80,7 +82,7 @@ def table(doc: Mapping[str, Any]) -> list[str]:
 
     def sec(r: Mapping[str, Any], k: str, key: str = "seconds") -> str:
         st = r.get("stages", {}).get(k)
-        if st is None:
+        if st is None or st.get(key) is None:  # an extra's simulation time is not measured apart
             return "—"
         return f"{st[key]:.1f}" + (" (cache)" if key == "seconds" and st["from_cache"] else "")
 
@@ -89,8 +91,10 @@ def table(doc: Mapping[str, Any]) -> list[str]:
     lines = ["## Where the time goes", "",
              f"This run: {run['wall_seconds']:.1f} s wall on {run['workers']} workers, {run['runs_simulated']} runs "
              f"simulated, {run['runs_cached']} served again from the run cache ({'cold' if run['cold'] else 'warm'}); {when}. "
-             "Seconds per stage (the papers run side by side on the workers, so their sum exceeds the wall time; "
-             "simulation: the part of a paper's time spent stepping the testbed).", "",
+             "Seconds per stage (" + ("the papers run side by side on the workers, so their sum exceeds the wall "
+                                      "time; " if run["workers"] > 1 else "")
+             + "simulation: the part of a paper's time spent stepping the testbed; an extra's is not measured "
+             "apart).", "",
              "| stage | this run [s] | of it simulation [s] | last cold run [s] | of it simulation [s] |",
              "|---|---|---|---|---|"]
     for k in names:

@@ -33,6 +33,8 @@ def _mc_tolerance(ctx: Any, shares: dict[str, float], n: int) -> None:
     ``results/metrics.json`` through ``ctx.info["metric_tolerance"]``, keyed by the table's metric)."""
     tol = ctx.info.setdefault("metric_tolerance", {})
     for key, p in shares.items():
+        if not math.isfinite(p):
+            continue  # no value: the default tolerance (a null tolerance would break `skidbench compare`)
         tol[f"nees.{key}"] = {"abs": 3.0 * math.sqrt(max(p * (1.0 - p), 0.0) / n) + 1.0 / n, "rel": 0.0}
 
 
