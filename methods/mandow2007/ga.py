@@ -123,17 +123,28 @@ def identify_ga(seg: Segments, ranges: GeneRanges | None = None, settings: GaSet
                 ) -> Identification:
     """Sec. III: GA over 40-bit chromosomes (8 bits per parameter) maximising -J(K) of eq. (13).
     pygad with a fixed ``random_seed`` (its own generators: no global random state); the fitness of
-    a whole population is one vectorised call (``fitness_batch_size`` = population)."""
+    a whole population is one vectorised call (``fitness_batch_size`` = population) over the chromosomes not seen
+    before in this run (a chromosome's cost is kept: the population repeats its individuals; the same bits as
+    evaluating them again, tested).  ``n_evaluations`` counts the fitness values asked for, as before."""
     import pygad  # local import: only identification needs it
 
     ranges = ranges or GeneRanges.for_track(seg.track)
     evals = [0]
     history: list[float] = []
+    known: dict[bytes, float] = {}  # chromosome -> fitness: a GA population repeats its individuals
 
     def fitness(_ga: Any, sols: np.ndarray, _idx: Any) -> np.ndarray:
         sols = np.atleast_2d(sols)
         evals[0] += sols.shape[0]
-        return -segment_cost(seg, decode_chromosomes(sols, ranges, settings.gray_code))
+        keys = [row.tobytes() for row in np.ascontiguousarray(sols, dtype=np.int8)]
+        first: dict[bytes, int] = {}
+        for i, k in enumerate(keys):
+            first.setdefault(k, i)
+        new = [i for k, i in first.items() if k not in known]
+        if new:  # each row's cost is computed alone (row-wise numpy): the same bits in any batch
+            got = -segment_cost(seg, decode_chromosomes(sols[new], ranges, settings.gray_code))
+            known.update(zip((keys[i] for i in new), got.tolist()))
+        return np.array([known[k] for k in keys])
 
     def bit_flip(offspring: np.ndarray, ga: Any) -> np.ndarray:
         # classical binary-GA mutation, vectorised, drawn from the GA's own seeded generator

@@ -55,3 +55,20 @@ def test_decode_chromosomes_gray_and_binary():
     gbits = ((gray[:, None] >> np.arange(7, -1, -1)) & 1).ravel()
     np.testing.assert_allclose(M.decode_chromosomes(gbits, ranges, gray_code=True)[0],
                                b[:, 0] + codes * (b[:, 1] - b[:, 0]) / 255)
+
+
+def test_a_candidates_cost_does_not_depend_on_its_batch():
+    """The GA's fitness memo (identify_ga) reuses a chromosome's cost from an earlier batch: valid because
+    segment_cost computes each row alone, bit for bit the same in any batch, chunk or position."""
+    ranges = M.GeneRanges.for_track(PLATFORM["track"])
+    seg = M.build_segments([joystick_run(M.TABLE_I["pneumatic_50psi"], duration=8.0, seed=4)])
+    rng = np.random.default_rng(5)
+    bits = rng.integers(0, 2, size=(37, 40))
+    k = M.decode_chromosomes(bits, ranges)
+    whole = M.segment_cost(seg, k)
+    alone = np.array([M.segment_cost(seg, k[i:i + 1])[0] for i in range(k.shape[0])])
+    shuffled = rng.permutation(k.shape[0])
+    assert np.array_equal(whole, alone)
+    assert np.array_equal(M.segment_cost(seg, k[shuffled]), whole[shuffled])
+    small_chunks = M.segment_increments(seg, k, max_elements=seg.n_intervals * 3)
+    assert all(np.array_equal(a, b) for a, b in zip(small_chunks, M.segment_increments(seg, k)))
