@@ -15,15 +15,14 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
-# the tests run on every core (pytest-xdist; TEST_WORKERS=0 runs them in this process); the tests that share a
-# quick reproduction are one group, on one worker (xdist_group marks), so it is computed once
+# the tests run on every core (pytest-xdist; TEST_WORKERS=0 runs them in this process)
 TEST_WORKERS ?= auto
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow" --benchmark-skip -n $(TEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest -q -m "not slow" --benchmark-skip -n $(TEST_WORKERS)
 
 test-all: $(STAMP)
-	$(BIN)/python -m pytest -q --benchmark-skip -n $(TEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest -q --benchmark-skip -n $(TEST_WORKERS)
 
 reproduce: $(STAMP)
 	$(BIN)/skidbench reproduce --all $(if $(WORKERS),--workers $(WORKERS),)

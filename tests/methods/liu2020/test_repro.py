@@ -262,8 +262,3 @@ def test_window_drift_closed_form():
     line = {"truth_x": 3.0 * t, "truth_y": np.zeros_like(t), "truth_yaw": np.zeros_like(t)}
     short = {"x": 2.7 * t + 5.0, "y": np.full_like(t, 1.0), "yaw": np.zeros_like(t)}
     assert _window_drift(line, short, 20, 90) == pytest.approx(0.1 * 3.0 * (t[90] - t[20]), rel=1e-9)
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("liu2020_quick_reproduction")

@@ -113,8 +113,3 @@ def test_calibration_and_scoring_runs_differ(results):
     assert len(winfo["calibration_runs"]["chi_lambda"]) == 16  # the quick grid: 8 curvature ratios x 2 speeds
     for method, calib in winfo["calibration_runs"].items():
         assert not scored & set(calib), method
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("mandow_wang_quick_reproductions")

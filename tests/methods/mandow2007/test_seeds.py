@@ -62,8 +62,3 @@ def test_validation_counts_the_conditions_won_beyond_the_interval(results):
     won = [v for key, v in m.items() if key.endswith("_asymmetric_best") and key != "validation.n_asymmetric_best"]
     assert m["validation.n_asymmetric_best"] == sum(won)
     assert m["validation.n_validated"] == len(won) == 1  # quick mode validates the Table III condition only
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("mandow_wang_quick_reproductions")

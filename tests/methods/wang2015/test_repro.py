@@ -70,8 +70,3 @@ def test_wang_claim_metrics_follow_their_definitions(results):
             m[f"table4.chi_lambda_{k}"] - m[f"table4.constant_{k}"], rel=1e-9, abs=1e-15)
         assert m[f"table4.{k}_half95"] > 0.0
     assert m["table4.n_seeds"] == len(WR.SETTINGS.validation_seeds_quick)
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("mandow_wang_quick_reproductions")

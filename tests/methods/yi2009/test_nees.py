@@ -387,8 +387,3 @@ def test_told_note_sentence_follows_the_told_cells():
     del out["figure8.told_both.v3.in_band"]
     assert Y._told_txt(out) == ""
     assert Y._told_txt({k: val for k, val in out.items() if ".told." not in k}) == ""
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("yi2009_quick_reproduction")

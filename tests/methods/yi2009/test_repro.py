@@ -283,8 +283,3 @@ def test_gyro_roll_error_closed_form() -> None:
     expected = float(np.sqrt(np.mean((b * t[m]) ** 2)))  # the same grid (forward Euler of a constant rate is exact)
     assert expected == pytest.approx(b * math.sqrt((t_end**3 - t0**3) / (3 * (t_end - t0))), rel=2e-3)
     assert gyro_roll_error(run, t0) == pytest.approx(expected, rel=1e-9)
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("yi2009_quick_reproduction")

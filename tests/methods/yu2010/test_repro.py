@@ -316,8 +316,3 @@ def test_initial_wheel_speed_within_one_count_is_rest() -> None:
     assert initial_wheel_speeds(run_with(2 * one, one, enc_spec)) == pytest.approx((2 * one, 0.0))
     assert initial_wheel_speeds(run_with(one, one, {})) == pytest.approx((one, one))
     assert initial_wheel_speeds(from_arrays({"t": t}, {"run_id": "no encoders"})) == (0.0, 0.0)
-
-
-# one xdist worker runs every test of the group, so the shared quick reproduction is computed once (make test:
-# --dist loadgroup)
-pytestmark = pytest.mark.xdist_group("yu2010_quick_reproduction")
