@@ -32,7 +32,7 @@ from typing import Any, Mapping
 
 from bench.spec import SpecError
 
-__all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "row_verdict",
+__all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "claim_tables", "row_verdict",
            "row_ratio", "evaluate_claim", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
@@ -62,6 +62,11 @@ def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
     if kind == "trend":
         return list(claim["series"])
     return [claim["metric"]]
+
+
+def claim_tables(claim: Mapping[str, Any]) -> set[str]:
+    """The ids of the tables whose metrics a claim reads (``<table>.<metric>``)."""
+    return {m.split(".")[0] for m in claim_metric_ids(claim)}
 
 
 def _fmt(x: Any) -> str:

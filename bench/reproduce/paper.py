@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bench.report.io import atomic_path
-from bench.reproduce.claims import (check_claim, check_published_on, claim_metric_ids, evaluate_claim, fails_if,
+from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if,
                                     row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
@@ -96,7 +96,7 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
         if not isinstance(t.get("extended", False), bool):
             raise SpecError(path, f"tables[{i}].extended", t["extended"], "true or false")
     for c in decl.get("claims", []):  # the default run reports every claim of the paper: none may rest on a study
-        uses = sorted({m.split(".")[0] for m in claim_metric_ids(c)} & extended)  # that only --extended runs
+        uses = sorted(claim_tables(c) & extended)  # that only --extended runs
         if uses and (c.get("headline") or c.get("scope", "paper") == "paper"):
             raise SpecError(path, f"claims.{c['id']}.scope", c.get("scope", "paper"),
                             f"a claim of the paper rests on the extended table(s) {uses}: only claims with scope "
@@ -225,7 +225,7 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
             rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row, tab.get("published_on"))})
         tables.append({**tab, "rows_out": rows, "all_metrics": got})
     claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])
-              if not any(m.split(".")[0] in skipped for m in claim_metric_ids(c))]
+              if not claim_tables(c) & set(skipped)]
     served = sorted(set(runner.served))
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]

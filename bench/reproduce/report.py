@@ -311,19 +311,19 @@ def _counts(claims: list[Mapping[str, Any]], causes: bool = True) -> str:
 def _extended_verdicts(results_dir: Path, res: PaperResult) -> str:
     """The verdicts of the claims that rest on a paper's extended tables, as the last extended run
     (``results/extended/claims.json``) gave them: a default report must not hide a failing check by leaving it out."""
-    from bench.reproduce.claims import claim_metric_ids
+    from bench.reproduce.claims import claim_tables
 
     skipped = set(res.info.get("extended_tables", ()))
-    ids = [c["id"] for c in res.decl.get("claims", [])
-           if any(m.split(".")[0] in skipped for m in claim_metric_ids(c))]
+    ids = [c["id"] for c in res.decl.get("claims", []) if claim_tables(c) & skipped]
     path = Path(results_dir) / "extended" / "claims.json"
     try:
-        got = json.loads(path.read_text())["claims"]
+        doc = json.loads(path.read_text())
+        got = doc["claims"]
     except (OSError, ValueError, KeyError):
         return f"their claims ({', '.join(ids)}) have no extended run yet" if ids else "no claim rests on them"
     parts = [f"{cid} **{got[f'{res.paper}.{cid}']['verdict']}**" if f"{res.paper}.{cid}" in got else f"{cid} not run"
              for cid in ids]
-    commit = json.loads(path.read_text()).get("commit", "?")[:12]
+    commit = str(doc.get("commit", "?"))[:12]
     return f"their claims in the last extended run (commit `{commit}`): {', '.join(parts)}" if parts else ""
 
 
