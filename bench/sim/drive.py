@@ -46,12 +46,18 @@ class MotorConstants:
         )
 
 
+def motor_line_constants(c: MotorConstants) -> tuple[float, float, float, float, float, float, float, float]:
+    """(gear, K_B, K_T, R_a, i_max, p_max, d tau_m / d w unsaturated, motor torque -> side torque at the
+    wheels) bound by :func:`motor_law` and by the testbed's C step (one computation for both)."""
+    slope_free = -c.K_T * c.K_B * c.gear / c.R_a
+    k = c.n * c.gear * c.eff
+    return c.gear, c.K_B, c.K_T, c.R_a, c.i_max, c.p_max, slope_free, k
+
+
 def motor_law(c: MotorConstants) -> Callable[[float, float], tuple[float, float, float]]:
     """The side's motor line with its constants bound (called twice per physics step):
     ``law(volt, w) -> (wheel-side torque [N m], current per motor [A], d torque / d w)``."""
-    gear, K_B, K_T, R_a, i_max, p_max = c.gear, c.K_B, c.K_T, c.R_a, c.i_max, c.p_max
-    slope_free = -c.K_T * c.K_B * c.gear / c.R_a  # d tau_m / d w (unsaturated)
-    k = c.n * c.gear * c.eff  # motor torque -> side torque at the wheels
+    gear, K_B, K_T, R_a, i_max, p_max, slope_free, k = motor_line_constants(c)
     copysign = math.copysign
 
     def law(volt: float, w: float) -> tuple[float, float, float]:

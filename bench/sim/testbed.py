@@ -17,8 +17,12 @@ friction is heading dependent and unusable).
 Speed (issue 2 target: >= 100x real time for one P3-AT at dt = 1/120 s, i.e. <= 83 us a step):
 a step is Bullet's ``stepSimulation`` (~20-30 us), five pybullet round trips (base pose, base
 velocity, contact points, external force and torque: ~10 us) and the scalar Python of
-``run_physics`` (~20 us; plain ``math`` on floats, constants bound once, the wheel frame computed
-once per contact normal).  The pybullet client is kept per thread and emptied between runs
+``run_physics`` (~20-40 us; plain ``math`` on floats, constants bound once, the wheel frame computed
+once per contact normal).  That arithmetic has a second implementation in C (``bench/sim/_kernel.c``,
+built by ``pip install``; ~3 us a step): the same operations in the same order, so the same trace bit for
+bit (tests/sim/test_kernel.py); used by default, ``SKIDBENCH_KERNEL=python`` runs the Python loop (also the
+fallback when the extension is not built).  Measured on a Wang grid run at 1/1920 s: 35 us a step with the
+C step against 70 us, of which ``stepSimulation`` is 19 us.  The pybullet client is kept per thread and emptied between runs
 (``_client``): connecting costs ~25 ms and the first ground plane ~15 ms.  Measured numbers:
 ``make bench`` (tests/bench/test_bench_testbed.py).
 """
@@ -34,8 +38,13 @@ from typing import Callable
 import numpy as np
 
 from bench.sim.commands import wheel_reference
-from bench.sim.drive import MotorConstants, SidePid, motor_law
-from bench.sim.tire import friction_coefficient, tire_law
+from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
+from bench.sim.tire import friction_coefficient, tire_constants, tire_law
+
+try:  # the C step (built by pip install; the Python loop below is the reference and the fallback)
+    from bench.sim import _kernel as KERNEL
+except ImportError:  # pragma: no cover - a source tree without the built extension
+    KERNEL = None
 from bench.spec import Scenario
 
 
@@ -233,6 +242,38 @@ def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SideP
         pid[s].prev_ref = refs[s] = w[s]
 
 
+def _kernel_loop(kern, scn: Scenario, motor: MotorConstants, pid: list[SidePid], r_eff: tuple[float, float],
+                 robot: int, cid: int, n_settle: int, n_steps: int, progress: Callable[[float], None] | None
+                 ) -> np.ndarray:
+    """The loop of :func:`run_physics` with its arithmetic in the C step (``bench.sim._kernel``): the same
+    pybullet calls in the same order, the same trace bit for bit (tests/sim/test_kernel.py)."""
+    getpos, getvel, getcp, mat = p.getBasePositionAndOrientation, p.getBaseVelocity, p.getContactPoints, p.getMatrixFromQuaternion
+    force, torque_fn, step, WORLD = p.applyExternalForce, p.applyExternalTorque, p.stepSimulation, p.WORLD_FRAME
+    kstep = kern.step
+    total = n_settle + n_steps
+    for k in range(-n_settle, n_steps + 1):
+        pos, orn = getpos(robot, cid)
+        lin, ang = getvel(robot, cid)
+        if k == 0 and scn.initial_speed != 0.0:
+            R0 = mat(orn)
+            v0 = scn.initial_speed
+            lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
+            p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
+            w, refs = [0.0, 0.0], [0.0, 0.0]
+            _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
+            for s in (0, 1):
+                kern.set_side(s, w[s], refs[s], pid[s].integ, pid[s].prev_ref)
+        out = kstep(k, pos, orn, lin, ang, mat(orn), getcp(robot, -1, -2, -2, cid))
+        if out is None:
+            break
+        if progress is not None and k >= 0 and k % 2000 == 0:
+            progress((k + n_settle) / total)
+        force(robot, -1, out[0], pos, WORLD, cid)
+        torque_fn(robot, -1, out[1], WORLD, cid)
+        step(cid)
+    return np.frombuffer(kern.log(), dtype=np.float64).reshape(-1, len(REC)).copy()
+
+
 def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | None = None) -> PhysicsTrace:
     """Step the testbed through the scenario; return the physics-rate trace.
 
@@ -288,6 +329,17 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         normal = [0.0] * 4
         cpos: list = [None] * 4
         cnorm: list = [None] * 4
+        if KERNEL is not None and os.environ.get("SKIDBENCH_KERNEL", "c") != "python":
+            c_lon, c_lat, eps2 = tire_constants(K, terr.shear_modulus_lat_ratio, patch_wheel, eps)
+            kern = KERNEL.Kernel(
+                (dt, lim, eps, k_max, k_hold, k_hold_dt, mu_roll, pid_slope, mu_sa, mu_op, v_max, i_max, pid_dt,
+                 i_side, k_amp, r_eff[0], r_eff[1], dt_rr[0], dt_rr[1], c_lon, c_lat, terr.mu_lat_ratio, eps2,
+                 plat.pid.kp, plat.pid.ki, plat.pid.kd),
+                (float(janosi), float(pid_every), float(pid_adds_slope), float(n_steps)),
+                [(fp.x_min, fp.x_max, fp.y_min, fp.y_max, fp.mu_scale, fp.t_period) for fp in patches],
+                ref_l, ref_r, math.hypot)
+            kern.set_motor(*motor_line_constants(motor), plat.pid.gain_scale)
+            return PhysicsTrace(_kernel_loop(kern, scn, motor, pid, r_eff, robot, cid, n_settle, n_steps, progress), cg)
         # the log is one flat list of floats: floats are not tracked by the cyclic GC, so the loop
         # allocates no lasting GC-tracked object (a list of row tuples triggered a collection
         # every ~700 steps, ~1 us a step)

@@ -41,6 +41,11 @@ def janosi_fraction(j_max: float, K: float) -> float:
     return 1.0 - (1.0 - math.exp(-z)) / z
 
 
+def tire_constants(K: float, K_lat_ratio: float, patch: float, eps: float) -> tuple[float, float, float]:
+    """(patch / K, patch / K_lat, eps^2) bound by :func:`tire_law` and by the testbed's C step."""
+    return patch / K, patch / (K * K_lat_ratio), eps * eps
+
+
 def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: float, patch: float,
              eps: float, k_max: float) -> Callable[[float, float, float, float, float, float], tuple[float, float, float]]:
     """The terrain's tire law with its constants bound (called 4 times per physics step):
@@ -59,9 +64,7 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
     (brush-model behaviour: Coulomb direction in full sliding).
     """
     hypot, exp = math.hypot, math.exp
-    c_lon = patch / K
-    c_lat = patch / (K * K_lat_ratio)
-    eps2 = eps * eps
+    c_lon, c_lat, eps2 = tire_constants(K, K_lat_ratio, patch, eps)
 
     def janosi(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float
                ) -> tuple[float, float, float]:

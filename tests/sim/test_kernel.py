@@ -1,0 +1,67 @@
+"""The testbed's C step (bench/sim/_kernel.c) against its reference, the Python loop of run_physics:
+the same physics-rate trace, bit for bit, on every branch the loop has (Janosi and Coulomb laws, a
+standing wheel held on a ramp, an initial speed, a controller slower than the physics, saturating
+motors, unequal wheel radii, the command map, friction patches steady and periodic, rate-limited
+references, a stiff terrain at its own physics step)."""
+from __future__ import annotations
+
+import pytest
+
+from bench.sim import testbed
+from bench.spec import load_scenario
+
+pytestmark = pytest.mark.skipif(testbed.KERNEL is None, reason="bench.sim._kernel not built")
+
+CASES = {
+    "janosi_circle": ("circle_vinyl", {"duration": 3.0}),
+    "coulomb_rotation": ("gap_dev_coulomb", {"duration": 2.0}),
+    "ramp_standing_then_climb": ("ramp_wood_15", {"duration": 2.0}),
+    "initial_speed_ramp": ("ramp_asphalt_5p4", {"duration": 1.5, "initial_speed": 0.5}),
+    "slow_pid_random_seeded": ("stress_dubhe_random", {"duration": 2.5, "platform.pid.rate_hz": 20.0}),
+    "saturating_motor_power_limit": ("yu_lemniscate", {"duration": 2.0, "platform.motor.max_power": 5.0,
+                                                        "platform.motor.max_current": 1.0}),
+    "unequal_radii_command_map": ("straight_0p2_vinyl", {"duration": 2.0, "platform.wheel_radius_scale_l": 1.03,
+                                                          "platform.command_gain_diff": 0.8,
+                                                          "platform.command_limit_mean": 5.0}),
+    "friction_patches": ("gap_dev_coulomb", {"duration": 2.0, "terrain.friction_patches": (
+        (-1e3, 1e3, -1e3, 0.0, 0.5, 0.0), (-1e3, 1e3, 0.0, 1e3, 0.7, 0.9))}),
+    "stiff_tile_fine_step": ("wang_circle_grid", {"duration": 1.5}),
+    "rate_limited_references": ("liu_small_radius", {"duration": 2.0}),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_c_step_gives_the_python_loop_bytes(case: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    name, over = CASES[case]
+    scn = load_scenario(name, over)
+    monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
+    ref = testbed.run_physics(scn, 3)
+    monkeypatch.setenv("SKIDBENCH_KERNEL", "c")
+    fast = testbed.run_physics(scn, 3)
+    assert fast.data.shape == ref.data.shape
+    assert fast.data.tobytes() == ref.data.tobytes()
+    assert fast.cg_offset == ref.cg_offset
+
+
+def test_the_c_step_is_used_by_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    """run_physics takes the C step unless SKIDBENCH_KERNEL=python (so the comparison above compares two paths)."""
+    calls = []
+    real = testbed._kernel_loop
+    monkeypatch.setattr(testbed, "_kernel_loop", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.delenv("SKIDBENCH_KERNEL", raising=False)
+    testbed.run_physics(load_scenario("circle_vinyl", {"duration": 0.2}), 0)
+    monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
+    testbed.run_physics(load_scenario("circle_vinyl", {"duration": 0.2}), 0)
+    assert calls == [1]
+
+
+def test_a_failing_run_through_the_c_step_leaves_a_usable_client() -> None:
+    scn = load_scenario("circle_vinyl", {"duration": 0.5})
+    before = testbed.run_physics(scn, 0).data
+
+    def fail(frac: float) -> None:
+        raise RuntimeError("stop")
+
+    with pytest.raises(RuntimeError, match="stop"):
+        testbed.run_physics(load_scenario("yi_circle", {"duration": 0.5}), 0, progress=fail)
+    assert testbed.run_physics(scn, 0).data.tobytes() == before.tobytes()
