@@ -18,7 +18,8 @@ def code_key(*extra: str) -> str:
     """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
     platform, terrain and paper files, the installed package versions, plus ``extra``."""
     h = hashlib.sha256()
-    for folder, pattern in (("bench", "**/*.py"), ("methods", "**/*.py"), ("scenarios", "**/*.toml")):
+    for folder, pattern in (("bench", "**/*.py"), ("bench", "**/*.c"), ("methods", "**/*.py"), ("methods", "**/*.c"),
+                            ("scenarios", "**/*.toml")):
         for p in sorted((REPO / folder).glob(pattern)):
             h.update(str(p.relative_to(REPO)).encode())
             h.update(p.read_bytes())

@@ -29,7 +29,7 @@ DEFAULT_CACHE = Path(os.environ.get("SKIDBENCH_CACHE", REPO / ".cache" / "runs")
 @functools.lru_cache(maxsize=1)
 def testbed_code_hash() -> str:
     h = hashlib.sha256()
-    for p in sorted((REPO / "bench" / "sim").glob("*.py")):
+    for p in sorted([*(REPO / "bench" / "sim").glob("*.py"), *(REPO / "bench" / "sim").glob("*.c")]):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     return h.hexdigest()[:16]
