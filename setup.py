@@ -1,9 +1,15 @@
-"""The testbed's C step (bench/sim/_kernel.c); everything else is in pyproject.toml.
+"""Two C extensions; everything else is in pyproject.toml.
+
+* bench/sim/_kernel.c: the testbed's per-step arithmetic.
+* methods/mandow2007/_cost.c: Mandow 2007 eq. (13), the GA's cost (numpy's segment_cost is its reference,
+  agreement to 1e-12 relative and the same GA result tested: tests/methods/mandow2007/test_cost_c.py).
+
 
 The Python loop of bench/sim/testbed.py is the step's reference and its fallback (a checkout without the built
 extension runs it, with the same numbers). Compiled without fused multiply-add and fast math, so that the C step
 does the Python loop's double operations bit for bit (tests/sim/test_kernel.py)."""
 from setuptools import Extension, setup
 
-setup(ext_modules=[Extension("bench.sim._kernel", sources=["bench/sim/_kernel.c"],
-                             extra_compile_args=["-O2", "-ffp-contract=off", "-fno-fast-math"])])
+FLAGS = ["-O2", "-ffp-contract=off", "-fno-fast-math"]
+setup(ext_modules=[Extension("bench.sim._kernel", sources=["bench/sim/_kernel.c"], extra_compile_args=FLAGS),
+                   Extension("methods.mandow2007._cost", sources=["methods/mandow2007/_cost.c"], extra_compile_args=FLAGS)])

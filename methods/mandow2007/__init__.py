@@ -21,6 +21,7 @@ Paper equation -> code
   (12)      alpha from a straight line ............ symmetric.identify_symmetric
   (13)      segment cost J(K) ..................... segments.build_segments, segments.segment_increments,
                                                     segments.segment_cost, segments.segment_errors
+                                                    (J(K) in C: _cost.c; segments.segment_cost_numpy its reference)
   Sec. III  GA, 8-bit genes, 40-bit chromosome .... ga.identify_ga (pygad), ga.decode_chromosomes,
                                                     ga.GeneRanges, ga.GaSettings
             second optimiser (not in the paper) ... ga.identify_de (scipy differential_evolution),

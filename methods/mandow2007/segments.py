@@ -12,6 +12,7 @@ residual is wrapped.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -21,6 +22,11 @@ from numpy.typing import ArrayLike
 from bench.run import Run, wrap_angle
 from methods.baselines import encoder_speeds, has_reference, platform_geometry, reference_poses
 from methods.mandow2007.kinematics import PARAM_NAMES, IcrParams
+
+try:  # eq. (13) in C (built by pip install); segment_cost_numpy is its reference and the fallback
+    from methods.mandow2007 import _cost as _COST
+except ImportError:  # pragma: no cover - a source tree without the built extension
+    _COST = None
 
 
 class CalibrationDataError(ValueError):
@@ -176,7 +182,36 @@ def segment_increments(seg: Segments, params: ArrayLike, max_elements: int = 163
 
 def segment_cost(seg: Segments, params: ArrayLike) -> np.ndarray:
     """Eq. (13): J(K) = sum_i (dx_i - dx^_i)^2 + (dy_i - dy^_i)^2 + (dphi_i - dphi^_i)^2 for each
-    parameter row (P,), or a scalar array for one set.  Degenerate rows (x_ICRr <= x_ICRl) cost inf."""
+    parameter row (P,), or a scalar array for one set.  Degenerate rows (x_ICRr <= x_ICRl) cost inf.
+
+    Computed by the C implementation (``methods/mandow2007/_cost.c``, ~20x faster: the GA's whole cost) when
+    it is built and ``SKIDBENCH_KERNEL`` is not ``python``; otherwise by :func:`segment_cost_numpy`, its
+    reference (the two agree to ~1e-15 relative: tests/methods/mandow2007/test_cost_c.py)."""
+    if _COST is None or os.environ.get("SKIDBENCH_KERNEL", "c") == "python":
+        return segment_cost_numpy(seg, params)
+    k = np.asarray(params, float)
+    k2 = np.ascontiguousarray(np.atleast_2d(k), dtype=np.float64)
+    if k2.shape[1] != 5:
+        raise ValueError(f"parameter rows must have 5 values {PARAM_NAMES}, got shape {k2.shape}")
+    c = _c_arrays(seg)
+    out = np.empty(k2.shape[0])
+    _COST.segment_cost(k2, *c, out)
+    return out if k.ndim > 1 else out[0]
+
+
+def _c_arrays(seg: Segments) -> tuple[np.ndarray, ...]:
+    """The contiguous arrays the C cost reads (made once per Segments object)."""
+    got = seg.__dict__.get("_c_arrays")
+    if got is None:
+        got = tuple(np.ascontiguousarray(a, dtype=dt) for a, dt in (
+            (seg.dl, np.float64), (seg.dr, np.float64), (seg.first, np.int64), (seg.ref_dx, np.float64),
+            (seg.ref_dy, np.float64), (seg.ref_dphi, np.float64)))
+        object.__setattr__(seg, "_c_arrays", got)
+    return got
+
+
+def segment_cost_numpy(seg: Segments, params: ArrayLike) -> np.ndarray:
+    """Eq. (13) in numpy (the reference of the C cost; see :func:`segment_cost`)."""
     k = np.asarray(params, float)
     k2 = np.atleast_2d(k)
     ok = k2[:, 1] > k2[:, 0]
