@@ -8,8 +8,8 @@ A malformed paper declaration (``scenarios/papers/<paper>.toml``: :func:`bench.r
 ``reproduce`` before any run with a one-line error naming file, claim, field and value (exit 2); claims not yet
 converted to the claim schema of :mod:`bench.reproduce.claims` are listed as warnings.
 
-The extras (:data:`EXTRAS`: real, league, gap, stress, run in that order by ``--all``) and their result cache (a
-marker per extra recording the files it wrote, :func:`_extra_kept`).  Registered into :data:`bench.cli.COMMANDS`
+The extras (:data:`EXTRAS`: league, stress, real, gap, run longest first by ``--all``, beside the papers when
+``--workers`` > 1) and their result cache (a marker per extra recording the files it wrote, :func:`_extra_kept`).  Registered into :data:`bench.cli.COMMANDS`
 on import.
 """
 from __future__ import annotations
@@ -46,12 +46,21 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
 
 
 EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int[, extended: bool])
-EXTENDED_EXTRAS = ("league",)  # the extras with an extended variant (`reproduce --extended --all` runs them)
+EXTENDED_EXTRAS = ("league", "stress")  # the extras with an extended variant (`reproduce --extended --all` runs them)
+# the extras' cost order (cold, 2 workers), longest first: the order in which they run beside the papers
+EXTRA_COST_ORDER = ("league", "stress", "real", "gap")
 
 
-def register_extra(name: str):
+EXTRA_OUTPUTS: dict[str, tuple[str, ...]] = {}  # name -> the relative-path prefixes of its files in the results folder
+
+
+def register_extra(name: str, outputs: tuple[str, ...] = ("",)):
+    """Register an extra: ``fn(results_dir, quick, workers=..., [extended=True])``.  ``outputs``: the prefixes of the
+    relative paths of the files it writes (default: any file of the results folder); its result-cache marker records
+    those files.  Only an extra that names its outputs runs beside the papers (the papers write the folder meanwhile)."""
     def deco(fn):
         EXTRAS[name] = fn
+        EXTRA_OUTPUTS[name] = tuple(outputs)
         return fn
     return deco
 
@@ -67,22 +76,24 @@ def _extra_marker(name: str, results_dir: Path, quick: bool, extended: bool = Fa
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
 
 
-def _file_state(results_dir: Path) -> dict[str, int]:
-    """mtime (ns) of every file under ``results_dir`` by its relative path (what an extra rewrites: atomic writes give
-    each written file a new mtime even when its content is unchanged)."""
+def _file_state(results_dir: Path, prefixes: tuple[str, ...] = ("",)) -> dict[str, int]:
+    """mtime (ns) of every file under ``results_dir`` (whose relative path starts with one of ``prefixes``) by its
+    relative path (what an extra rewrites: atomic writes give each written file a new mtime even when its content is
+    unchanged)."""
     root = Path(results_dir)
     if not root.is_dir():
         return {}
-    return {str(p.relative_to(root)): p.stat().st_mtime_ns for p in root.rglob("*") if p.is_file()}
+    return {rel: p.stat().st_mtime_ns for p in root.rglob("*")
+            if p.is_file() and (rel := p.relative_to(root).as_posix()).startswith(prefixes)}
 
 
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _extra_outputs(results_dir: Path, before: Mapping[str, int]) -> dict[str, str]:
-    """{relative path: sha256} of the files under ``results_dir`` written since the ``before`` state."""
-    after = _file_state(results_dir)
+def _extra_outputs(results_dir: Path, before: Mapping[str, int], prefixes: tuple[str, ...] = ("",)) -> dict[str, str]:
+    """{relative path: sha256} of the files under ``results_dir`` (starting with ``prefixes``) written since ``before``."""
+    after = _file_state(results_dir, prefixes)
     return {rel: _sha256(Path(results_dir) / rel) for rel, mt in sorted(after.items()) if before.get(rel) != mt}
 
 
@@ -109,6 +120,31 @@ def _remove_stale_temp_files(results_dir: Path) -> None:
         if folder.is_dir():
             for p in folder.rglob(".*.tmp"):
                 p.unlink(missing_ok=True)
+
+
+def _extras_job(extras: list[str], results_dir: Path, quick: bool, workers: int, extended: bool,
+                log: Any = None) -> dict[str, dict[str, Any]]:
+    """The extras (longest first, :data:`EXTRA_COST_ORDER`), each skipped when its result-cache marker still holds
+    (:func:`_extra_kept`); returns their stage times.  Run in a process of its own beside the papers (``--workers``
+    > 1) or after them."""
+    log = log or (lambda msg: print(msg, flush=True))
+    stages: dict[str, dict[str, Any]] = {}
+    rank = {x: i for i, x in enumerate(EXTRA_COST_ORDER)}
+    for name in sorted(extras, key=lambda x: rank.get(x, len(rank))):
+        t_x = time.perf_counter()
+        marker = _extra_marker(name, results_dir, quick, extended)
+        if _extra_kept(marker, results_dir):
+            log(f"{name}: unchanged since the last run, results kept")
+            stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": True}
+            continue
+        log(f"extra: {name}")
+        prefixes = EXTRA_OUTPUTS.get(name, ("",))
+        before = _file_state(results_dir, prefixes)
+        EXTRAS[name](results_dir, quick, workers=workers, **({"extended": True} if extended else {}))
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before, prefixes)}, indent=1) + "\n")
+        stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": False}
+    return stages
 
 
 def _reproduce(a: argparse.Namespace) -> int:
@@ -160,7 +196,9 @@ def _reproduce(a: argparse.Namespace) -> int:
         def log(msg: str) -> None:
             prog.console.print(msg)
 
-        if papers != [] and (papers is not None or a.all or not a.papers):
+        run_papers = papers != [] and (papers is not None or a.all or not a.papers)
+
+        def papers_stage() -> None:
             runner_stats: dict[str, Any] = {}
             R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
                         results_dir=results_dir, log=log, progress=progress, extended=extended,
@@ -168,19 +206,24 @@ def _reproduce(a: argparse.Namespace) -> int:
             stages.update(runner_stats.get("stages", {}))
             for k in stats:
                 stats[k] += runner_stats.get(k, 0)
-        for name in extras:
-            t_x = time.perf_counter()
-            marker = _extra_marker(name, results_dir, a.quick, extended)
-            if _extra_kept(marker, results_dir):
-                log(f"{name}: unchanged since the last run, results kept")
-                stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": True}
-                continue
-            log(f"extra: {name}")
-            before = _file_state(results_dir)
-            EXTRAS[name](results_dir, a.quick, workers=a.workers, **({"extended": True} if extended else {}))
-            marker.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before)}, indent=1) + "\n")
-            stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": False}
+
+        beside_ok = all(EXTRA_OUTPUTS.get(x, ("",)) != ("",) for x in extras)
+        if run_papers and extras and beside_ok and a.workers > 1 and a.dask_scheduler is None:
+            # the extras run beside the papers, in a process of their own that waits on their pools (longest first):
+            # the cores the last paper jobs leave idle do the league and the stress cases.  A process, not a thread:
+            # the pools fork, and a fork from a process with a busy second thread can copy a lock that thread holds
+            from concurrent.futures import ProcessPoolExecutor
+
+            with ProcessPoolExecutor(max_workers=1) as beside:
+                fut = beside.submit(_extras_job, extras, results_dir, a.quick, a.workers, extended)
+                try:
+                    papers_stage()
+                finally:
+                    stages.update(fut.result())
+        else:
+            if run_papers:
+                papers_stage()
+            stages.update(_extras_job(extras, results_dir, a.quick, a.workers, extended, log))
     R.link_extras(Path(results_dir), a.quick)
     wall = time.perf_counter() - t0
     if (a.all or not a.papers) and (papers is None or extended):  # the whole reproduction: its stage table
@@ -271,10 +314,10 @@ command("compare", "list metrics that moved beyond tolerance; non-zero exit on r
 
 
 # ------------------------------------------------------------------------------------------ extras
-register_extra("real")(_extra_real)  # the real data (bench.cli.real)
+register_extra("real", outputs=("real/",))(_extra_real)  # the real data (bench.cli.real)
 
 
-@register_extra("league")
+@register_extra("league", outputs=("league",))
 def _extra_league(results_dir: Path, quick: bool, workers: int = 1, extended: bool = False) -> None:
     from bench.reproduce.league import write_league
     from bench.reproduce.runner import Runner
@@ -282,17 +325,17 @@ def _extra_league(results_dir: Path, quick: bool, workers: int = 1, extended: bo
     write_league(results_dir, quick, Runner(workers=workers), extended=extended)
 
 
-@register_extra("gap")
+@register_extra("gap", outputs=("gap/",))
 def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: one worked example
     from bench.gap import write_worked_example
 
     write_worked_example(Path(results_dir) / "gap")
 
 
-@register_extra("stress")
-def _extra_stress(results_dir: Path, quick: bool, workers: int = 1) -> None:
+@register_extra("stress", outputs=("stress",))
+def _extra_stress(results_dir: Path, quick: bool, workers: int = 1, extended: bool = False) -> None:
     """Filters under stress (``results/stress.md``): in ``make reproduce`` the short runs of seed 1
-    (``bench.robustness.stress.QUICK``, ~1.5 min on 2 cores); the six-seed + 1-hour table (``bench.robustness.stress.FULL``,
+    (``bench.robustness.stress.QUICK``, the paper filters; Liu's consistent configurations too with ``--extended``); the six-seed + 1-hour table (``bench.robustness.stress.FULL``,
     tens of minutes) is ``python -c "from bench.robustness.stress import stress_report; stress_report('results',
     quick=False)"``.  Skipped by ``reproduce --quick`` (CI): ``make test`` runs the stress tests."""
     if quick:
@@ -300,4 +343,4 @@ def _extra_stress(results_dir: Path, quick: bool, workers: int = 1) -> None:
         return
     from bench.robustness.stress import stress_report
 
-    print(f"stress: {stress_report(results_dir, quick=True, workers=workers)}")
+    print(f"stress: {stress_report(results_dir, quick=True, workers=workers, extended=extended)}")
