@@ -144,3 +144,7 @@ def test_league_jobs_read_each_scenario_once_per_part_and_cover_every_cell():
         assert costs[1] - costs[0] <= max(CELL_COST.values())  # greedy: within one cell's cost
     cost = [sum(CELL_COST.get(n, 0.5) for n in names_) for names_, _ in jobs]
     assert cost == sorted(cost, reverse=True)
+    # two scenarios per worker or more: one job per scenario (its runs read once)
+    four = [(n, s) for s in "abcd" for n in names]
+    jobs = _jobs(four, 2)
+    assert sorted(s for _, s in jobs) == list("abcd") and sorted(c for n_, s in jobs for c in ((n, s) for n in n_)) == sorted(four)

@@ -151,25 +151,29 @@ def _cell_job(names: tuple[str, ...], sname: str, quick: bool, n_seeds: int, cac
 
 
 # Relative cost of a cell (calibration + 5 estimates; measured on yi_figure8, seconds on one core: the paper UKFs
-# ~6 s, their consistent configurations 28-39 s, the GA ~11 s, the EKFs ~1.3 s, their consistent ones 3-5 s, the
-# rest < 1 s; a scenario's 13 runs take ~2.5 s to read, once per job): jobs are submitted most expensive first.
+# ~6 s, their consistent configurations 28-39 s, the GA ~2-3 s with its cost in C (11 s in numpy), the EKFs ~1.3 s,
+# their consistent ones 3-5 s, the rest < 1 s; a scenario's 13 runs take ~2.5 s to read, once per job): jobs are
+# submitted most expensive first.
 CELL_COST = {"liu2020.mi_ukf": 6.0, "liu2020.ukf_icr": 6.0, "liu2020.mi_ukf_consistent": 38.0,
-             "liu2020.ukf_icr_consistent": 28.0, "mandow2007.asymmetric_ga": 11.0,
-             "mandow2007.asymmetric_de": 3.0, "yi2009.ekf_v1": 1.3, "yi2009.ekf_v2": 1.3, "yi2009.ekf_v3": 1.3,
+             "liu2020.ukf_icr_consistent": 28.0, "mandow2007.asymmetric_ga": 2.5,
+             "mandow2007.asymmetric_de": 0.6, "yi2009.ekf_v1": 1.3, "yi2009.ekf_v2": 1.3, "yi2009.ekf_v3": 1.3,
              "yi2009.ekf_v1_consistent": 3.0, "yi2009.ekf_v2_consistent": 4.0, "yi2009.ekf_v3_consistent": 4.5,
              "yu2010.closed_loop": 1.2, "yu2010.open_loop": 1.2}
 
 
 def _jobs(pairs: list[tuple[str, str]], workers: int) -> list[tuple[tuple[str, ...], str]]:
     """The cells grouped into jobs: per scenario, its methods dealt into ``workers`` parts of about equal cost
-    (most expensive first), so that a job reads its scenario's runs once (a job per cell read them per cell:
+    (most expensive first; one part when there are at least two scenarios per worker), so that a job reads its
+    scenario's runs once (a job per cell read them per cell:
     the parquet reads were a large part of the league's time); jobs ordered most expensive first."""
     by_scenario: dict[str, list[str]] = {}
     for name, sname in pairs:
         by_scenario.setdefault(sname, []).append(name)
     jobs: list[tuple[float, tuple[str, ...], str]] = []
+    # with at least two scenarios per worker, one job per scenario balances as well and reads its runs once
+    n_parts = 1 if len(by_scenario) >= 2 * max(1, workers) else max(1, workers)
     for sname, names in by_scenario.items():
-        parts: list[tuple[float, list[str]]] = [(0.0, []) for _ in range(max(1, workers))]
+        parts: list[tuple[float, list[str]]] = [(0.0, []) for _ in range(n_parts)]
         for name in sorted(names, key=lambda n: -CELL_COST.get(n, 0.5)):
             i = min(range(len(parts)), key=lambda j: parts[j][0])
             parts[i] = (parts[i][0] + CELL_COST.get(name, 0.5), parts[i][1] + [name])

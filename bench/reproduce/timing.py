@@ -91,8 +91,8 @@ def table(doc: Mapping[str, Any]) -> list[str]:
     lines = ["## Where the time goes", "",
              f"This run: {run['wall_seconds']:.1f} s wall on {run['workers']} workers, {run['runs_simulated']} runs "
              f"simulated, {run['runs_cached']} served again from the run cache ({'cold' if run['cold'] else 'warm'}); {when}. "
-             "Seconds per stage (" + ("the papers run side by side on the workers, so their sum exceeds the wall "
-                                      "time; " if run["workers"] > 1 else "")
+             "Seconds per stage (" + ("the papers and the extras run side by side on the workers, so their sum "
+                                      "exceeds the wall time; " if run["workers"] > 1 else "")
              + "simulation: the part of a paper's time spent stepping the testbed; an extra's is not measured "
              "apart).", "",
              "| stage | this run [s] | of it simulation [s] | last cold run [s] | of it simulation [s] |",

@@ -108,8 +108,8 @@ static PyObject *segment_cost(PyObject *self, PyObject *args) {
                         cs = (1.0 - cos(dth)) / dth;
                     } else {
                         const double d2 = dth * dth;
-                        sn = 1.0 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 - d2 / 5040));
-                        cs = dth * (0.5 + d2 * (-1.0 / 24 + d2 * (1.0 / 720 - d2 / 40320)));
+                        sn = 1.0 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 - d2 * (1.0 / 5040)));
+                        cs = dth * (0.5 + d2 * (-1.0 / 24 + d2 * (1.0 / 720 - d2 * (1.0 / 40320))));
                     }
                     const double br = sn * fwd - cs * lat, bi = cs * fwd + sn * lat;  /* body increment */
                     zr += br * hr - bi * hi;
