@@ -126,6 +126,14 @@ static void Kernel_dealloc(Kernel *self) {
 static int Kernel_init(Kernel *self, PyObject *args, PyObject *kwds) {
     PyObject *consts, *ints, *patches, *ref_l, *ref_r, *hypot;
     if (!PyArg_ParseTuple(args, "OOOOOO", &consts, &ints, &patches, &ref_l, &ref_r, &hypot)) return -1;
+    /* a second __init__ starts afresh (no buffer of the first is kept) */
+    PyMem_Free(self->patches);
+    PyMem_Free(self->ref_l);
+    PyMem_Free(self->ref_r);
+    PyMem_Free(self->log);
+    self->patches = NULL;
+    self->ref_l = self->ref_r = self->log = NULL;
+    Py_CLEAR(self->hypot);
     double c[N_CONST];
     if (read_doubles(consts, c, N_CONST, "consts") < 0) return -1;
     double iv[4];

@@ -22,8 +22,8 @@ once per contact normal).  That arithmetic has a second implementation in C (``b
 built by ``pip install``; ~3 us a step): the same operations in the same order, so the same trace bit for
 bit (tests/sim/test_kernel.py); used by default, ``SKIDBENCH_KERNEL=python`` runs the Python loop (also the
 fallback when the extension is not built).  Measured on a Wang grid run at 1/1920 s: 35 us a step with the
-C step against 70 us, of which ``stepSimulation`` is 19 us.  The pybullet client is kept per thread and emptied between runs
-(``_client``): connecting costs ~25 ms and the first ground plane ~15 ms.  Measured numbers:
+C step against 70 us, of which ``stepSimulation`` is 19 us.  The pybullet client is kept per thread and emptied
+between runs (``_client``): connecting costs ~25 ms and the first ground plane ~15 ms.  Measured numbers:
 ``make bench`` (tests/bench/test_bench_testbed.py).
 """
 from __future__ import annotations
@@ -40,12 +40,12 @@ import numpy as np
 from bench.sim.commands import wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_law
+from bench.spec import Scenario
 
 try:  # the C step (built by pip install; the Python loop below is the reference and the fallback)
     from bench.sim import _kernel as KERNEL
 except ImportError:  # pragma: no cover - a source tree without the built extension
     KERNEL = None
-from bench.spec import Scenario
 
 
 
