@@ -5,7 +5,9 @@
  * For each parameter row K = (x_ICRl, x_ICRr, y_ICRv, alpha_l, alpha_r) and each segment: eqs. (6)-(7)
  * integrated exactly over the segment's intervals (SE(2) exponential, zero-order hold), in the frame of the
  * segment start, compared with the reference increment; J = sum of squared position and wrapped heading
- * residuals.  The same per-interval arithmetic as segments._increments_chunk; the heading within a segment
+ * residuals.  Rows are done two at a time in SSE2 lanes (cost_pair: each lane the operations of cost_row, so
+ * the same bits as one row alone; tests/methods/mandow2007/test_ga.py checks a row's cost does not depend on its
+ * batch), ~1.4x one row at a time.  The same per-interval arithmetic as segments._increments_chunk; the heading within a segment
  * starts at 1 instead of dividing the run's running heading by its value at the segment start, and sums run
  * in order: the last bits differ from numpy's (pairwise sums, running product over the whole run).
  */
@@ -14,6 +16,9 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define SMALL_ANGLE 0.05
 
@@ -39,6 +44,118 @@ static inline double wrap_angle(double a) {
     }
     return mod - M_PI;
 }
+
+/* eq. (13) for one parameter row (inf for a degenerate row, x_ICRr <= x_ICRl) */
+static double cost_row(const double *kr, const double *dl, const double *dr, const int64_t *first, Py_ssize_t n,
+                       Py_ssize_t m, const double *rdx, const double *rdy, const double *rdphi) {
+    const double xl = kr[0], xr = kr[1], yv = kr[2], al = kr[3], ar = kr[4];
+    if (!(xr > xl)) return INFINITY;
+    const double inv = 1.0 / (xr - xl);
+    const double th_l = -al * inv, th_r = ar * inv, f_l = xr * al * inv, f_r = -xl * ar * inv;
+    double cost = 0.0;
+    for (Py_ssize_t s = 0; s < n; s++) {
+        const Py_ssize_t j0 = first[s], j1 = s + 1 < n ? first[s + 1] : m;
+        double hr = 1.0, hi = 0.0, zr = 0.0, zi = 0.0, dphi = 0.0;
+        for (Py_ssize_t j = j0; j < j1; j++) {
+            const double dth = th_l * dl[j] + th_r * dr[j];
+            const double fwd = f_l * dl[j] + f_r * dr[j];
+            const double lat = -yv * dth;
+            double sn, cs;
+            if (fabs(dth) > SMALL_ANGLE) {
+                sn = sin(dth) / dth;
+                cs = (1.0 - cos(dth)) / dth;
+            } else {
+                const double d2 = dth * dth;
+                sn = 1.0 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 - d2 * (1.0 / 5040)));
+                cs = dth * (0.5 + d2 * (-1.0 / 24 + d2 * (1.0 / 720 - d2 * (1.0 / 40320))));
+            }
+            const double br = sn * fwd - cs * lat, bi = cs * fwd + sn * lat;  /* body increment */
+            zr += br * hr - bi * hi;
+            zi += br * hi + bi * hr;
+            const double rr = 1.0 - dth * cs, ri = dth * sn;  /* exp(i dth) */
+            const double t = hr * rr - hi * ri;
+            hi = hr * ri + hi * rr;
+            hr = t;
+            dphi += dth;
+        }
+        const double ex = rdx[s] - zr, ey = rdy[s] - zi, ephi = wrap_angle(rdphi[s] - dphi);
+        cost += ex * ex + ey * ey + ephi * ephi;
+    }
+    return cost;
+}
+
+#ifdef __SSE2__
+/* cost_row for two rows at once (SSE2 lanes): every lane does cost_row's operations in its order (IEEE add, sub, mul
+ * per lane, no fused multiply-add), so the same bits as cost_row; a degenerate row runs on zeros and gives inf */
+static void cost_pair(const double *k2, const double *dl, const double *dr, const int64_t *first, Py_ssize_t n,
+                      Py_ssize_t m, const double *rdx, const double *rdy, const double *rdphi, double *out) {
+    double thl[2], thr[2], fl[2], fr[2], nyv[2];
+    int live[2];
+    for (int b = 0; b < 2; b++) {
+        const double *kr = k2 + 5 * b;
+        const double xl = kr[0], xr = kr[1], yv = kr[2], al = kr[3], ar = kr[4];
+        live[b] = xr > xl;
+        const double inv = live[b] ? 1.0 / (xr - xl) : 0.0;
+        thl[b] = live[b] ? -al * inv : 0.0;
+        thr[b] = live[b] ? ar * inv : 0.0;
+        fl[b] = live[b] ? xr * al * inv : 0.0;
+        fr[b] = live[b] ? -xl * ar * inv : 0.0;
+        nyv[b] = live[b] ? -yv : 0.0;
+    }
+    const __m128d v_thl = _mm_loadu_pd(thl), v_thr = _mm_loadu_pd(thr), v_fl = _mm_loadu_pd(fl), v_fr = _mm_loadu_pd(fr);
+    const __m128d v_nyv = _mm_loadu_pd(nyv), one = _mm_set1_pd(1.0), half = _mm_set1_pd(0.5);
+    const __m128d c6 = _mm_set1_pd(-1.0 / 6), c120 = _mm_set1_pd(1.0 / 120), c5040 = _mm_set1_pd(1.0 / 5040);
+    const __m128d c24 = _mm_set1_pd(-1.0 / 24), c720 = _mm_set1_pd(1.0 / 720), c40320 = _mm_set1_pd(1.0 / 40320);
+    const __m128d sign = _mm_set1_pd(-0.0), small = _mm_set1_pd(SMALL_ANGLE);
+    double cost[2] = {0.0, 0.0};
+    for (Py_ssize_t s = 0; s < n; s++) {
+        const Py_ssize_t j0 = first[s], j1 = s + 1 < n ? first[s + 1] : m;
+        __m128d hr = one, hi = _mm_setzero_pd(), zr = _mm_setzero_pd(), zi = _mm_setzero_pd(), dphi = _mm_setzero_pd();
+        for (Py_ssize_t j = j0; j < j1; j++) {
+            const __m128d vdl = _mm_set1_pd(dl[j]), vdr = _mm_set1_pd(dr[j]);
+            const __m128d dth = _mm_add_pd(_mm_mul_pd(v_thl, vdl), _mm_mul_pd(v_thr, vdr));
+            const __m128d fwd = _mm_add_pd(_mm_mul_pd(v_fl, vdl), _mm_mul_pd(v_fr, vdr));
+            const __m128d lat = _mm_mul_pd(v_nyv, dth);
+            const __m128d d2 = _mm_mul_pd(dth, dth);
+            __m128d sn = _mm_add_pd(one, _mm_mul_pd(d2, _mm_add_pd(c6, _mm_mul_pd(d2, _mm_sub_pd(c120, _mm_mul_pd(d2, c5040))))));
+            __m128d cs = _mm_mul_pd(dth, _mm_add_pd(half, _mm_mul_pd(d2, _mm_add_pd(c24, _mm_mul_pd(d2,
+                                    _mm_sub_pd(c720, _mm_mul_pd(d2, c40320)))))));
+            const int big = _mm_movemask_pd(_mm_cmpgt_pd(_mm_andnot_pd(sign, dth), small));
+            if (big) {  /* rare: a turn beyond the series' range in one interval */
+                double d[2], a[2], c[2];
+                _mm_storeu_pd(d, dth);
+                _mm_storeu_pd(a, sn);
+                _mm_storeu_pd(c, cs);
+                for (int b = 0; b < 2; b++)
+                    if (big & (1 << b)) {
+                        a[b] = sin(d[b]) / d[b];
+                        c[b] = (1.0 - cos(d[b])) / d[b];
+                    }
+                sn = _mm_loadu_pd(a);
+                cs = _mm_loadu_pd(c);
+            }
+            const __m128d br = _mm_sub_pd(_mm_mul_pd(sn, fwd), _mm_mul_pd(cs, lat));
+            const __m128d bi = _mm_add_pd(_mm_mul_pd(cs, fwd), _mm_mul_pd(sn, lat));
+            zr = _mm_add_pd(zr, _mm_sub_pd(_mm_mul_pd(br, hr), _mm_mul_pd(bi, hi)));
+            zi = _mm_add_pd(zi, _mm_add_pd(_mm_mul_pd(br, hi), _mm_mul_pd(bi, hr)));
+            const __m128d rr = _mm_sub_pd(one, _mm_mul_pd(dth, cs)), ri = _mm_mul_pd(dth, sn);
+            const __m128d t = _mm_sub_pd(_mm_mul_pd(hr, rr), _mm_mul_pd(hi, ri));
+            hi = _mm_add_pd(_mm_mul_pd(hr, ri), _mm_mul_pd(hi, rr));
+            hr = t;
+            dphi = _mm_add_pd(dphi, dth);
+        }
+        double a_zr[2], a_zi[2], a_dphi[2];
+        _mm_storeu_pd(a_zr, zr);
+        _mm_storeu_pd(a_zi, zi);
+        _mm_storeu_pd(a_dphi, dphi);
+        for (int b = 0; b < 2; b++) {
+            const double ex = rdx[s] - a_zr[b], ey = rdy[s] - a_zi[b], ephi = wrap_angle(rdphi[s] - a_dphi[b]);
+            cost[b] += ex * ex + ey * ey + ephi * ephi;
+        }
+    }
+    for (int b = 0; b < 2; b++) out[b] = live[b] ? cost[b] : INFINITY;
+}
+#endif
 
 /* segment_cost(k (P*5), dl (M), dr (M), first (N, int64), ref_dx, ref_dy, ref_dphi (N), out (P)) */
 static PyObject *segment_cost(PyObject *self, PyObject *args) {
@@ -86,45 +203,11 @@ static PyObject *segment_cost(PyObject *self, PyObject *args) {
             goto done;
         }
         Py_BEGIN_ALLOW_THREADS
-        for (Py_ssize_t r = 0; r < p; r++) {
-            const double xl = k[5 * r], xr = k[5 * r + 1], yv = k[5 * r + 2], al = k[5 * r + 3], ar = k[5 * r + 4];
-            if (!(xr > xl)) {
-                out[r] = INFINITY;
-                continue;
-            }
-            const double inv = 1.0 / (xr - xl);
-            const double th_l = -al * inv, th_r = ar * inv, f_l = xr * al * inv, f_r = -xl * ar * inv;
-            double cost = 0.0;
-            for (Py_ssize_t s = 0; s < n; s++) {
-                const Py_ssize_t j0 = first[s], j1 = s + 1 < n ? first[s + 1] : m;
-                double hr = 1.0, hi = 0.0, zr = 0.0, zi = 0.0, dphi = 0.0;
-                for (Py_ssize_t j = j0; j < j1; j++) {
-                    const double dth = th_l * dl[j] + th_r * dr[j];
-                    const double fwd = f_l * dl[j] + f_r * dr[j];
-                    const double lat = -yv * dth;
-                    double sn, cs;
-                    if (fabs(dth) > SMALL_ANGLE) {
-                        sn = sin(dth) / dth;
-                        cs = (1.0 - cos(dth)) / dth;
-                    } else {
-                        const double d2 = dth * dth;
-                        sn = 1.0 + d2 * (-1.0 / 6 + d2 * (1.0 / 120 - d2 * (1.0 / 5040)));
-                        cs = dth * (0.5 + d2 * (-1.0 / 24 + d2 * (1.0 / 720 - d2 * (1.0 / 40320))));
-                    }
-                    const double br = sn * fwd - cs * lat, bi = cs * fwd + sn * lat;  /* body increment */
-                    zr += br * hr - bi * hi;
-                    zi += br * hi + bi * hr;
-                    const double rr = 1.0 - dth * cs, ri = dth * sn;  /* exp(i dth) */
-                    const double t = hr * rr - hi * ri;
-                    hi = hr * ri + hi * rr;
-                    hr = t;
-                    dphi += dth;
-                }
-                const double ex = rdx[s] - zr, ey = rdy[s] - zi, ephi = wrap_angle(rdphi[s] - dphi);
-                cost += ex * ex + ey * ey + ephi * ephi;
-            }
-            out[r] = cost;
-        }
+        Py_ssize_t r = 0;
+#ifdef __SSE2__
+        for (; r + 1 < p; r += 2) cost_pair(k + 5 * r, dl, dr, first, n, m, rdx, rdy, rdphi, out + r);
+#endif
+        for (; r < p; r++) out[r] = cost_row(k + 5 * r, dl, dr, first, n, m, rdx, rdy, rdphi);
         Py_END_ALLOW_THREADS
         Py_INCREF(Py_None);
         ret = Py_None;
