@@ -242,6 +242,14 @@ def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SideP
         pid[s].prev_ref = refs[s] = w[s]
 
 
+def _start_moving(robot: int, cid: int, orn: tuple, ang: tuple, v0: float) -> tuple[float, float, float]:
+    """At t = 0 of a scenario with an initial speed: the chassis velocity set to ``v0`` along its forward axis."""
+    R0 = p.getMatrixFromQuaternion(orn)
+    lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
+    p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
+    return lin
+
+
 def _kernel_loop(kern, scn: Scenario, motor: MotorConstants, pid: list[SidePid], r_eff: tuple[float, float],
                  robot: int, cid: int, n_settle: int, n_steps: int, progress: Callable[[float], None] | None
                  ) -> np.ndarray:
@@ -255,10 +263,7 @@ def _kernel_loop(kern, scn: Scenario, motor: MotorConstants, pid: list[SidePid],
         pos, orn = getpos(robot, cid)
         lin, ang = getvel(robot, cid)
         if k == 0 and scn.initial_speed != 0.0:
-            R0 = mat(orn)
-            v0 = scn.initial_speed
-            lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
-            p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
+            lin = _start_moving(robot, cid, orn, ang, scn.initial_speed)
             w, refs = [0.0, 0.0], [0.0, 0.0]
             _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
             for s in (0, 1):
@@ -362,10 +367,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             pos, orn = getpos(robot, cid)
             lin, ang = getvel(robot, cid)
             if k == 0 and scn.initial_speed != 0.0:
-                R0 = mat(orn)
-                v0 = scn.initial_speed
-                lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
-                p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
+                lin = _start_moving(robot, cid, orn, ang, scn.initial_speed)
                 _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
             # references (rate-limited)
             if k >= 0:
