@@ -294,3 +294,25 @@ def test_extra_is_kept_only_while_the_results_folder_holds_its_output(tmp_path, 
     assert len(calls) == 4
     C._reproduce(args)
     assert len(calls) == 4
+
+
+def test_an_extra_records_only_its_own_files_while_papers_write_beside_it(tmp_path, monkeypatch):
+    """An extra run beside the papers records in its marker only the files under its output prefixes: a paper's file
+    written at the same time is not the extra's (else a later reset of that paper file would recompute the extra)."""
+    import bench.cli.reproduce as C
+    import bench.reproduce.runner
+
+    monkeypatch.setattr(bench.reproduce.runner, "DEFAULT_CACHE", tmp_path / "cache" / "runs")
+    res = tmp_path / "results"
+    (res / "yi2009").mkdir(parents=True)
+
+    def extra(results_dir, quick, workers=1):
+        (results_dir / "yi2009" / "table.csv").write_text("a paper's file, written meanwhile\n")
+        (results_dir / "league.md").write_text("the extra's\n")
+
+    monkeypatch.setitem(C.EXTRAS, "league", extra)
+    stages = C._extras_job(["league"], res, False, 1, False)
+    marker = C._extra_marker("league", res, False)
+    assert json.loads(marker.read_text())["outputs"].keys() == {"league.md"}
+    assert stages["league"]["from_cache"] is False
+    assert C.EXTRA_OUTPUTS["league"] == ("league",) and C.EXTRA_OUTPUTS["stress"] == ("stress",)
