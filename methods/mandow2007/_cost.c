@@ -22,8 +22,8 @@
 
 #define SMALL_ANGLE 0.05
 
-static int get_buf(PyObject *o, Py_buffer *b, const char *fmt, const char *what) {
-    if (PyObject_GetBuffer(o, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
+static int get_buf(PyObject *o, Py_buffer *b, const char *fmt, const char *what, int writable) {
+    if (PyObject_GetBuffer(o, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0) return -1;
     if (b->ndim > 2 || strcmp(b->format, fmt) != 0) {
         PyErr_Format(PyExc_TypeError, "%s: expected a contiguous array of format '%s', got '%s'", what, fmt, b->format);
         PyBuffer_Release(b);
@@ -159,33 +159,30 @@ static void cost_pair(const double *k2, const double *dl, const double *dr, cons
 
 /* segment_cost(k (P*5), dl (M), dr (M), first (N, int64), ref_dx, ref_dy, ref_dphi (N), out (P)) */
 static PyObject *segment_cost(PyObject *self, PyObject *args) {
-    PyObject *ok_, *odl, *odr, *ofirst, *odx, *ody, *odphi, *oout;
-    if (!PyArg_ParseTuple(args, "OOOOOOOO", &ok_, &odl, &odr, &ofirst, &odx, &ody, &odphi, &oout)) return NULL;
-    Py_buffer bk, bdl, bdr, bfirst, bdx, bdy, bdphi, bout;
-    int got = 0;
+    enum { K, DL, DR, FIRST, DX, DY, DPHI, OUT, N_BUF };
+    static const char *const names[N_BUF] = {"k", "dl", "dr", "first", "ref_dx", "ref_dy", "ref_dphi", "out"};
+    PyObject *obj[N_BUF];
+    Py_buffer buf[N_BUF];
+    if (!PyArg_ParseTuple(args, "OOOOOOOO", &obj[K], &obj[DL], &obj[DR], &obj[FIRST], &obj[DX], &obj[DY], &obj[DPHI],
+                          &obj[OUT]))
+        return NULL;
+    int got = 0;  /* buffers 0 .. got-1 are held */
     PyObject *ret = NULL;
-    if (get_buf(ok_, &bk, "d", "k") < 0) goto done;
-    got = 1;
-    if (get_buf(odl, &bdl, "d", "dl") < 0) goto done;
-    got = 2;
-    if (get_buf(odr, &bdr, "d", "dr") < 0) goto done;
-    got = 3;
-    if (get_buf(ofirst, &bfirst, "q", "first") < 0 && (PyErr_Clear(), get_buf(ofirst, &bfirst, "l", "first") < 0)) goto done;
-    got = 4;
-    if (get_buf(odx, &bdx, "d", "ref_dx") < 0) goto done;
-    got = 5;
-    if (get_buf(ody, &bdy, "d", "ref_dy") < 0) goto done;
-    got = 6;
-    if (get_buf(odphi, &bdphi, "d", "ref_dphi") < 0) goto done;
-    got = 7;
-    if (PyObject_GetBuffer(oout, &bout, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) goto done;
-    got = 8;
+    for (; got < N_BUF; got++) {
+        /* float64 everywhere, int64 segment starts (numpy's format for it is 'l' on LP64, 'q' elsewhere), out writable */
+        const int ok = got == FIRST ? (get_buf(obj[got], &buf[got], "l", names[got], 0) == 0 ||
+                                       (PyErr_Clear(), get_buf(obj[got], &buf[got], "q", names[got], 0) == 0))
+                                    : get_buf(obj[got], &buf[got], "d", names[got], got == OUT) == 0;
+        if (!ok) goto done;
+    }
+    const Py_buffer bk = buf[K], bdl = buf[DL], bdr = buf[DR], bfirst = buf[FIRST], bdx = buf[DX], bdy = buf[DY],
+                    bdphi = buf[DPHI], bout = buf[OUT];
     {
         Py_ssize_t m = bdl.len / (Py_ssize_t)sizeof(double), n = bfirst.len / (Py_ssize_t)sizeof(int64_t);
         Py_ssize_t p = bout.len / (Py_ssize_t)sizeof(double);
         if (bdr.len != bdl.len || bk.len != p * 5 * (Py_ssize_t)sizeof(double) ||
             bdx.len != n * (Py_ssize_t)sizeof(double) || bdy.len != bdx.len || bdphi.len != bdx.len ||
-            strcmp(bout.format, "d") != 0) {
+            bfirst.itemsize != (Py_ssize_t)sizeof(int64_t)) {
             PyErr_SetString(PyExc_ValueError, "segment_cost: inconsistent array sizes");
             goto done;
         }
@@ -213,14 +210,7 @@ static PyObject *segment_cost(PyObject *self, PyObject *args) {
         ret = Py_None;
     }
 done:
-    if (got >= 8) PyBuffer_Release(&bout);
-    if (got >= 7) PyBuffer_Release(&bdphi);
-    if (got >= 6) PyBuffer_Release(&bdy);
-    if (got >= 5) PyBuffer_Release(&bdx);
-    if (got >= 4) PyBuffer_Release(&bfirst);
-    if (got >= 3) PyBuffer_Release(&bdr);
-    if (got >= 2) PyBuffer_Release(&bdl);
-    if (got >= 1) PyBuffer_Release(&bk);
+    while (got > 0) PyBuffer_Release(&buf[--got]);
     return ret;
 }
 
