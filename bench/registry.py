@@ -54,6 +54,8 @@ class Method(Protocol):
     name: str  # "liu2020.mi_ukf"
     paper: str  # short citation, "Liu et al. 2020"
     requires: frozenset[str]  # Run channels it reads
+    # optional: ``calibration_requires`` (channels its calibration runs need besides), ``start_pose_channels`` (the
+    # channels of ``requires`` it reads only for its start pose: the league groups methods by what they read after it)
 
     def calibrate(self, runs: Sequence[Run]) -> "Method": ...
 

@@ -75,7 +75,8 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
 
 def test_league_cells_in_parallel_equal_serial(tmp_path):
     """The league's cells run as process-pool jobs with workers > 1: the same table as serial."""
-    from bench.reproduce.league import league_csv, run_league
+    from bench.reproduce.league import run_league
+    from bench.reproduce.league_table import league_csv
 
     kw = dict(quick=True, methods=["baseline.ideal_dd", "wang2015.constant_chi", "mandow2007.symmetric"],
               scenarios=("circle_vinyl", "yi_circle"))

@@ -41,6 +41,8 @@ Two families:
      reference, no alignment (Liu et al. 2020, Table 2: "the GNSS position is regarded as the
      reference"); the estimate is interpolated linearly at the reference timestamps.
    * :func:`final_position_error` -- position error at the last common reference sample.
+   * :func:`divergence` -- the first instant the position error exceeds the reference's path length so far
+     (at least 1 m): the league reports it instead of an RMS.
    * :func:`velocity_rms` -- RMS per body-velocity channel (vx, vy, wz) against truth.
    * :func:`segment_errors` -- Mandow et al. 2007 Sec. III eq. (13) and Table III: the path is
      cut into N short segments at the external-sensor samples; each segment is dead-reckoned
@@ -71,7 +73,7 @@ from scipy.spatial.transform import Rotation  # noqa: F401  (bench.metrics.Rotat
 from bench.metrics.alignment import ALIGNMENTS, Alignment, align, umeyama  # noqa: F401
 from bench.metrics.ape_rpe import (_so3_angle, ErrorResult, Stats, ape, rpe, rpe_pairs,  # noqa: F401
                                    statistics)
-from bench.metrics.position import final_position_error, position_errors, position_rms
+from bench.metrics.position import Divergence, divergence, final_position_error, position_errors, position_rms
 from bench.metrics.segments import (SegmentDeadReckoner, SegmentErrors, WindowErrors, segment_errors,
                                     trajectory_reckoner, velocity_reckoner, window_end_errors)
 from bench.metrics.trajectory import MetricError, Trajectory, associate, interpolate
@@ -81,7 +83,7 @@ from bench.run import Run
 __all__ = [
     "MetricError", "Trajectory", "Stats", "statistics", "Alignment", "umeyama", "align",
     "associate", "interpolate", "ErrorResult", "ape", "rpe", "rpe_pairs",
-    "position_errors", "position_rms", "final_position_error", "velocity_rms",
+    "Divergence", "divergence", "position_errors", "position_rms", "final_position_error", "velocity_rms",
     "SegmentDeadReckoner", "velocity_reckoner", "trajectory_reckoner", "SegmentErrors",
     "segment_errors", "WindowErrors", "window_end_errors", "summary",
 ]

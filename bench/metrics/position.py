@@ -4,11 +4,16 @@ the estimate is interpolated linearly at the reference timestamps.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from bench.metrics.trajectory import MetricError, Trajectory
 
-__all__ = ["position_errors", "position_rms", "final_position_error"]
+__all__ = ["Divergence", "divergence", "position_errors", "position_rms", "final_position_error"]
+
+DIVERGENCE_FLOOR = 1.0  # [m] the smallest error bound of :func:`divergence` (a protocol choice: near the start the path
+# length is ~0 and an error of a few cm would otherwise count)
 
 
 def _interp_planar(traj: Trajectory, tq: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -40,3 +45,35 @@ def final_position_error(ref: Trajectory, est: Trajectory) -> float:
     if e.size == 0:
         raise MetricError(f"no reference sample of '{ref.name}' inside the time span of '{est.name}'")
     return float(e[-1])
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """Where an estimate first left the bound of :func:`divergence`: time [s], the reference sample's index, the
+    error and the bound there [m]."""
+
+    t: float
+    step: int
+    error: float
+    bound: float
+
+
+def divergence(ref: Trajectory, est: Trajectory, floor: float = DIVERGENCE_FLOOR) -> Divergence | None:
+    """The first reference sample at which the position error (as :func:`position_errors`: no alignment, the
+    estimate interpolated at the reference stamps) exceeds ``max(s(t), floor)``, with ``s(t)`` the path length the
+    reference has travelled since its first sample; None when the estimate stays inside it.
+
+    A dead-reckoned estimate whose speeds are right is at most ``2 s(t)`` off, and only when it went the opposite
+    way: past ``s(t)`` the estimate is farther from the robot than the robot is from its start, i.e. it says
+    nothing about where the robot is.  Such an estimate is a divergence to report, not an error to average."""
+    if not (np.isfinite(floor) and floor > 0):
+        raise MetricError(f"divergence: floor = {floor!r} must be finite and > 0 [m]")
+    x, y, _ = _interp_planar(est, ref.t)
+    path = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(ref.x), np.diff(ref.y)))))
+    err = np.hypot(x - ref.x, y - ref.y)
+    bound = np.maximum(path, floor)
+    out = np.flatnonzero(np.isfinite(err) & (err > bound))
+    if out.size == 0:
+        return None
+    i = int(out[0])
+    return Divergence(float(ref.t[i]), i, float(err[i]), float(bound[i]))

@@ -11,8 +11,10 @@ Fairness rules:
   what its paper's identification uses (Mandow: rotation + straight, GA on the random path;
   Wang: the steady circles; Yi: S(gamma) from the turns; Liu: ICR from the reference).
 * Scored runs: the league scenarios with seeds 0..n-1; identical runs for every method.
-* A method whose calibration or estimate fails on a scenario gets an empty cell with the error in
-  the notes, not a silent zero.
+* A method whose calibration or estimate fails on a scenario gets a cell that says why in words (no machine
+  path), not a silent zero; an estimate that diverges (:func:`bench.metrics.divergence`) is reported as
+  "diverged at t = ..." with its step, never averaged.
+* The table (:mod:`bench.reproduce.league_table`) ranks methods only against those that read the same sensors.
 """
 from __future__ import annotations
 
@@ -20,8 +22,9 @@ import dataclasses
 import functools
 import math
 import os
+import re
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
@@ -29,9 +32,10 @@ import numpy as np
 from scipy import stats
 
 from bench import registry
-from bench.metrics import Trajectory, position_rms
+from bench.metrics import Divergence, Trajectory, divergence, position_rms
 from bench.report.io import atomic_write_text
 from bench.reproduce.runner import Runner
+from bench.run import RunError
 from bench.spec import CommandSpec, Scenario, Segment, load_scenario
 
 LEAGUE_SCENARIOS = (
@@ -65,15 +69,21 @@ def calibration_set(scn: Scenario, quick: bool = False) -> list[tuple[Scenario, 
 
 @dataclass
 class Cell:
+    """One method on one league scenario: the position RMS of each scored seed (``values[i]`` is seed ``i``), the
+    seeds whose estimate diverged (:func:`bench.metrics.divergence`: ``(seed, t, step, error, bound)``), the error that
+    kept the method from running (in words, no machine path) and a note on its calibration."""
+
     method: str
     scenario: str
     values: list[float]
     error: str = ""
     note: str = ""
+    diverged: list[tuple[int, float, int, float, float]] = field(default_factory=list)
 
     def summary(self) -> tuple[float, float, float]:
+        """Mean and 95 % bootstrap interval over the seeds; NaN when any seed diverged (never averaged)."""
         v = np.asarray([x for x in self.values if math.isfinite(x)])
-        if v.size == 0:
+        if v.size == 0 or self.diverged:
             return math.nan, math.nan, math.nan
         if v.size < 3 or np.ptp(v) == 0:
             return float(v.mean()), float(v.min()), float(v.max())
@@ -82,30 +92,49 @@ class Cell:
         return float(v.mean()), float(ci.low), float(ci.high)
 
 
-def _score(run: Any, est: Any) -> float:
-    """Position RMS of the estimate against the truth (planar; z ignored)."""
+def _score(run: Any, est: Any) -> tuple[float, Divergence | None]:
+    """Position RMS of the estimate against the truth (planar; z ignored) and its divergence, if any."""
     d = run.data
     ref = Trajectory.planar(d["t"], d["truth_x"], d["truth_y"], d["truth_yaw"], name="truth")
     e = est.data
     ok = np.isfinite(e["x"].to_numpy()) & np.isfinite(e["y"].to_numpy()) & np.isfinite(e["yaw"].to_numpy())
-    return position_rms(ref, Trajectory.planar(e["t"][ok], e["x"][ok], e["y"][ok], e["yaw"][ok], name=est.method))
+    if not ok.any():
+        raise ValueError("the estimate has no finite pose")
+    traj = Trajectory.planar(e["t"][ok], e["x"][ok], e["y"][ok], e["yaw"][ok], name=est.method)
+    return position_rms(ref, traj), divergence(ref, traj)
 
 
-def _calibrate(name: str, cal: list, note: list[str]) -> Any:
-    """Calibrate on the whole set; a method that rejects some kinds of run gets the steady runs
-    only; one that still fails runs with its published defaults (said in the notes)."""
+_PATH = re.compile(r"(?<![\w.~-])/(?:[^\s:'\"/]+/)*([^\s:'\"/]+)")
+
+
+def reason(exc: BaseException) -> str:
+    """An exception as the words of a table note: its type and message with every absolute path replaced by the
+    file's name (a run file's path, first in a RunError, is dropped: the cell already names the run)."""
+    msg = str(exc)
+    if isinstance(exc, RunError) or msg.startswith("/"):
+        head, sep, rest = msg.partition(": ")
+        if sep and _PATH.fullmatch(head):
+            msg = rest
+    return f"{type(exc).__name__}: {_PATH.sub(lambda m: m.group(1), msg)}"
+
+
+def _calibrate(name: str, cal: list, note: list[str]) -> tuple[Any, str]:
+    """Calibrate on the whole set; a method that rejects some kinds of run gets the steady runs only; one that
+    still fails runs with its published defaults (said in the notes).  Returns the method and, when no
+    calibration took, why (the cell reports it if the defaults cannot run either)."""
     try:
-        return registry.calibrate(registry.get(name), cal)
+        return registry.calibrate(registry.get(name), cal), ""
     except Exception as exc:
-        first = f"{type(exc).__name__}: {str(exc).split(': ', 1)[-1][:90]}"
+        first = reason(exc)
     steady = [r for r in cal if r.meta.get("scenario_kind") != "random"]
     try:
         m = registry.calibrate(registry.get(name), steady)
-        note.append(f"calibrated on the steady runs only ({first})")
-        return m
+        note.append(f"calibrated on the steady runs only, the random path refused ({first})")
+        return m, ""
     except Exception as exc:
-        note.append(f"uncalibrated, published defaults ({type(exc).__name__}: {str(exc)[:100]})")
-        return registry.get(name)
+        why = reason(exc)
+        note.append(f"uncalibrated, published defaults (calibration failed: {why})")
+        return registry.get(name), why
 
 
 def _league_requests(sname: str, quick: bool, n_seeds: int) -> tuple[list, list]:
@@ -128,19 +157,27 @@ def _cached_runs(sname: str, quick: bool, n_seeds: int, cache_dir: str) -> tuple
 
 
 def _cell(name: str, sname: str, cal: list, scored: list) -> Cell:
-    """One method on one scenario: calibrate on the calibration set, score every seed."""
+    """One method on one scenario: calibrate on the calibration set, score every seed, flag divergences."""
     cell = Cell(name, sname, [])
+    failed_calibration = ""
     try:
-        if not registry.get(name).requires <= set(scored[0].data.columns):
-            cell.error = "sensors absent"
+        missing = sorted(registry.get(name).requires - set(scored[0].data.columns))
+        if missing:
+            cell.error = f"the scenario's runs have no {', '.join(missing)}"
             return cell
         note: list[str] = []
-        m = _calibrate(name, cal, note)
+        m, failed_calibration = _calibrate(name, cal, note)
         cell.note = "; ".join(note)
-        for run in scored:
-            cell.values.append(_score(run, registry.estimate(m, run)))
+        for seed, run in enumerate(scored):
+            rms, div = _score(run, registry.estimate(m, run))
+            cell.values.append(rms)
+            if div is not None:
+                cell.diverged.append((seed, div.t, div.step, div.error, div.bound))
     except Exception as exc:  # reported in the table, never a silent number
-        cell.error = f"{type(exc).__name__}: {str(exc)[:120]}"
+        cell.values = []
+        cell.error = (f"cannot run here: its calibration failed ({failed_calibration})" if failed_calibration
+                      else reason(exc))
+        cell.note = ""
     return cell
 
 
@@ -220,61 +257,18 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
     return cells
 
 
-def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False) -> str:
-    scen = list(dict.fromkeys(c.scenario for c in cells))
-    meths = list(dict.fromkeys(c.method for c in cells))
-    by = {(c.method, c.scenario): c for c in cells}
-    lines = [
-        "# League table: position RMS against the testbed truth [m]", "",
-        f"Mean and 95% bootstrap interval over {n_seeds} seeds per scenario; each method calibrated on a",
-        "separate calibration set of the scenario's platform and terrain (bench/reproduce/league.py). Lower is better;",
-        ("the papers' configurations, the baselines and skidbench's own consistent configurations (*_consistent);"
-         if extended else "the papers' configurations and the baselines (skidbench's own consistent configurations: "
-         "`skidbench reproduce league --extended`, results/extended/league.md);"),
-        "the best mean per scenario is in bold. Empty cells: the method failed (see notes) or lacks sensors.", "",
-        "| method | " + " | ".join(scen) + " |", "|---|" + "---|" * len(scen),
-    ]
-    best = {}
-    for s in scen:
-        means = [(by[(m, s)].summary()[0], m) for m in meths if (m, s) in by and by[(m, s)].values]
-        means = [x for x in means if math.isfinite(x[0])]
-        best[s] = min(means)[1] if means else None
-    notes = []
-    for m in meths:
-        row = [m]
-        for s in scen:
-            c = by.get((m, s))
-            if c is None or not c.values:
-                row.append("")
-                if c is not None and c.error:
-                    notes.append(f"- {m} on {s}: {c.error}")
-                continue
-            if c.note:
-                notes.append(f"- {m} on {s}: {c.note}")
-            mean, lo, hi = c.summary()
-            txt = f"{mean:.3g} [{lo:.3g}, {hi:.3g}]"
-            row.append(f"**{txt}**" if best[s] == m else txt)
-        lines.append("| " + " | ".join(row) + " |")
-    if notes:
-        lines += ["", "Notes:", *notes]
-    return "\n".join(lines) + "\n"
-
-
-def league_csv(cells: list[Cell]) -> str:
-    out = ["method,scenario,mean,ci_low,ci_high,n,values,error"]
-    for c in cells:
-        mean, lo, hi = c.summary()
-        vals = ";".join(f"{v:.6g}" for v in c.values)
-        out.append(f"{c.method},{c.scenario},{mean:.6g},{lo:.6g},{hi:.6g},{len(c.values)},{vals},\"{c.error}\"")
-    return "\n".join(out) + "\n"
-
-
 def write_league(results_dir: Path, quick: bool, runner: Runner | None = None,
                  log: Callable[[str], None] = print, extended: bool = False) -> list[Cell]:
     runner = runner or Runner(workers=os.cpu_count() or 1)
     n = 2 if quick else 5
     cells = run_league(runner, n_seeds=n, quick=quick, log=log, extended=extended)
     suffix = "_quick" if quick else ""
-    atomic_write_text(results_dir / f"league{suffix}.md", league_markdown(cells, n, extended))
+    from bench.reproduce.league_table import league_csv, league_markdown
+
+    columns = {}
+    for sname in dict.fromkeys(c.scenario for c in cells):
+        scn = load_scenario(sname)
+        columns[sname] = f"{scn.platform.name}, {scn.terrain.name}"
+    atomic_write_text(results_dir / f"league{suffix}.md", league_markdown(cells, n, extended, columns))
     atomic_write_text(results_dir / f"league{suffix}.csv", league_csv(cells))
     return cells

@@ -384,7 +384,7 @@ def write_documents(results: list[PaperResult], results_dir: Path, quick: bool) 
 
 
 EXTRA_RESULTS = (  # (file under results/, what it is): written by the extras of `reproduce --all`
-    ("league{suffix}.md", "cross-paper league table: every method on every scenario where its sensors exist"),
+    ("league{suffix}.md", "cross-paper league table: every method on every scenario, ranked within its sensor group (wheel odometry; wheels + IMU; wheels + IMU + GNSS; dynamic model)"),
     ("real/husky.md", "real Clearpath Husky (DRIVE data): calibrated kinematic models scored on held-out steps"),
     ("real/husky_gap.md", "gap workflow with the testbed's husky model against the real data"),
     ("gap/worked_example.md", "gap workflow worked example on simulated data with a hidden effect"),

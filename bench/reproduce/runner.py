@@ -70,6 +70,21 @@ def _physics_groups(todo: dict[Path, tuple[Scenario, int]]) -> list[tuple[Scenar
     return list(groups.values())
 
 
+def portable_source(path: str) -> str:
+    """A scenario's file as the manifest records it: relative to the repository (``scenarios/x.toml``) when it is one
+    of the suite's, else its file name; never a path of the machine that made the run (the run's identity does not
+    depend on it: :func:`bench.sim.scenario_hash` leaves it out)."""
+    from bench.spec import SCENARIO_DIR
+
+    if not path:
+        return ""
+    p = Path(path)
+    try:
+        return p.resolve().relative_to(SCENARIO_DIR.parent).as_posix()
+    except ValueError:
+        return p.name
+
+
 @dataclass
 class Runner:
     """Simulate (scenario, seed) pairs with a cache and optional parallelism.
@@ -127,7 +142,7 @@ class Runner:
 
         sh = scenario_hash(scn)
         self.manifest["cpu_dispatch"] = dispatch_state()
-        self.manifest["scenarios"].setdefault(sh, to_dict(scn))
+        self.manifest["scenarios"].setdefault(sh, dict(to_dict(scn), source_file=portable_source(scn.source_file)))
         self.served.append((scn.id, int(seed)))
         self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
                                       "content_hash": run.content_hash()}

@@ -91,6 +91,7 @@ class EnDr:
     name: ClassVar[str] = "liu2020.en_dr"
     paper: ClassVar[str] = PAPER
     requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+    start_pose_channels: ClassVar[frozenset[str]] = GNSS_POSE  # read for the first fix only (the start point)
 
     def calibrate(self, runs: Sequence[Run]) -> "EnDr":
         return self
@@ -118,6 +119,7 @@ class IcrDr:
     name: ClassVar[str] = "liu2020.icr"
     paper: ClassVar[str] = PAPER
     requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+    start_pose_channels: ClassVar[frozenset[str]] = GNSS_POSE  # read for the first fix only (the start point)
     calibration_requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE | GNSS_VEL | frozenset({"imu_gz"})
 
     def calibrate(self, runs: Sequence[Run]) -> "IcrDr":
@@ -216,6 +218,7 @@ class SlipDr:
     name: ClassVar[str] = "liu2020.slip_dr"
     paper: ClassVar[str] = PAPER
     requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE
+    start_pose_channels: ClassVar[frozenset[str]] = GNSS_POSE  # read for the first fix only (the start point)
     calibration_requires: ClassVar[frozenset[str]] = ENCODERS | GNSS_POSE | GNSS_VEL | frozenset({"imu_gz"})
 
     def calibrate(self, runs: Sequence[Run]) -> "SlipDr":

@@ -52,6 +52,13 @@ def traction_features(acc: np.ndarray, gyr: np.ndarray) -> np.ndarray:
     return np.column_stack((acc[:, 0], np.abs(gyr[:, 2])))
 
 
+def _longest_finite_run(e: np.ndarray) -> int:
+    """The length of the longest run of consecutive finite samples of ``e``."""
+    edges = np.diff(np.concatenate(([0], np.isfinite(e).astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return int((ends - starts).max()) if starts.size else 0
+
+
 def fit_row_offset(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt: float, window: float = 2.0,
                    who: str = "fit_row_offset") -> tuple[np.ndarray, dict[str, float]]:
     """Least-squares coefficients c of a pseudo-measurement row's error modelled as feats @ c, from row residuals
@@ -69,7 +76,10 @@ def fit_row_offset(res: Sequence[np.ndarray], feats: Sequence[np.ndarray], dt: f
     except ValueError:
         y = np.empty(0)
     if y.size < 3:
-        raise ValueError(f"{who}: no full {window} s window of finite residuals and features")
+        longest = max((_longest_finite_run(e) for e in masked), default=0)
+        raise ValueError(f"{who}: no full {window} s window of finite residuals and features (the longest run of "
+                         f"finite steps is {longest} = {longest * dt:.3f} s; a step is masked at rest, when gated, or "
+                         "when it has no new wheel-encoder sample, e.g. encoders slower than the IMU)")
     c, *_ = np.linalg.lstsq(x, y, rcond=None)
     return c, {"window": w * dt, "rms_before": float(np.sqrt(np.mean(y**2))),
                "rms_after": float(np.sqrt(np.mean((y - x @ c) ** 2))), "windows": int(y.size)}
