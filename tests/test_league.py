@@ -25,9 +25,9 @@ def _line(t: np.ndarray, vx: float, dy: float = 0.0, name: str = "x") -> Traject
 
 
 def test_divergence_closed_forms() -> None:
-    """Truth: 1 m/s along x.  An estimate going the other way is 2t off, past max(t, 1 m) first at t > 0.5 s; an
-    offset under the 1 m floor never diverges; one over it diverges at the first sample, and stays inside once the
-    path is longer than the offset (only the first crossing counts)."""
+    """Truth: 1 m/s along x for 10 s.  An estimate going the other way is 2t off, past max(t, 1 m) for good from
+    t > 0.5 s; an offset under the 1 m floor never diverges; an excursion that comes back inside the bound is not a
+    divergence; one that lasts to the end is, from its first sample."""
     t = np.round(np.arange(0.0, 10.0 + 1e-9, 0.01), 10)
     ref = _line(t, 1.0, name="truth")
     d = divergence(ref, _line(t, -1.0))
@@ -35,14 +35,17 @@ def test_divergence_closed_forms() -> None:
     assert d.bound == 1.0
     assert divergence(ref, _line(t, 1.0)) is None
     assert divergence(ref, _line(t, 1.0, dy=0.99)) is None
-    d = divergence(ref, _line(t, 1.0, dy=1.01))
-    assert d is not None and d.step == 0
-    # the bound is the path so far: 3 m off at the end of a 10 m path is inside it, 3 m off after 2 m is not
-    late = Trajectory.planar(t, t + np.where(t > 8.0, 3.0, 0.0), np.zeros_like(t), np.zeros_like(t), name="late")
-    assert divergence(ref, late) is None
-    early = Trajectory.planar(t, t + np.where(t > 2.0, 3.0, 0.0), np.zeros_like(t), np.zeros_like(t), name="early")
-    d = divergence(ref, early)
-    assert d is not None and d.t == pytest.approx(2.01)
+    assert divergence(ref, _line(t, 1.0, dy=1.01)) is None  # past the floor at the start, inside once s > 1.01 m
+    spike = Trajectory.planar(t, t + np.where((t > 2.0) & (t < 3.0), 3.0, 0.0), np.zeros_like(t), np.zeros_like(t),
+                              name="spike")
+    assert divergence(ref, spike) is None  # 3 m off on a 2-3 m path, then back
+    late = Trajectory.planar(t, t + np.where(t > 8.0, 30.0, 0.0), np.zeros_like(t), np.zeros_like(t), name="late")
+    d = divergence(ref, late)
+    assert d is not None and d.t == pytest.approx(8.01) and d.error == pytest.approx(30.0)
+    # back inside for a while, then out for good: the last excursion counts
+    twice = Trajectory.planar(t, t + np.where((t > 1.0) & (t < 1.5), 5.0, 0.0) + np.where(t > 6.0, 20.0, 0.0),
+                              np.zeros_like(t), np.zeros_like(t), name="twice")
+    assert divergence(ref, twice).t == pytest.approx(6.01)
     with pytest.raises(MetricError, match="floor"):
         divergence(ref, ref, floor=0.0)
 
@@ -181,3 +184,18 @@ def test_manifest_records_the_scenario_file_relative_to_the_repository() -> None
 
     assert portable_source(str(SCENARIO_DIR / "yi_circle.toml")) == "scenarios/yi_circle.toml"
     assert portable_source("/elsewhere/my_robot.toml") == "my_robot.toml" and portable_source("") == ""
+
+
+def test_an_estimate_that_ends_in_nan_is_a_divergence() -> None:
+    """A filter whose state blew up to NaN and stayed there diverged where its finite part ended."""
+    import pandas as pd
+
+    from bench.registry import make_estimate
+
+    t = np.round(np.arange(0.0, 5.0 + 1e-9, 0.01), 10)
+    run = type("R", (), {"data": pd.DataFrame({"t": t, "truth_x": 0.2 * t, "truth_y": 0 * t, "truth_yaw": 0 * t})})()
+    x = np.where(t < 3.0, 0.2 * t, np.nan)
+    rms, div = league._score(run, make_estimate("m", {}, t=t, x=x, y=0 * t, yaw=0 * t))
+    assert rms == pytest.approx(0.0, abs=1e-12) and div is not None and div.t == pytest.approx(3.0) and div.step == 300
+    rms, div = league._score(run, make_estimate("m", {}, t=t, x=0.2 * t, y=0 * t, yaw=0 * t))
+    assert div is None

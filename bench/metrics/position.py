@@ -59,9 +59,11 @@ class Divergence:
 
 
 def divergence(ref: Trajectory, est: Trajectory, floor: float = DIVERGENCE_FLOOR) -> Divergence | None:
-    """The first reference sample at which the position error (as :func:`position_errors`: no alignment, the
-    estimate interpolated at the reference stamps) exceeds ``max(s(t), floor)``, with ``s(t)`` the path length the
-    reference has travelled since its first sample; None when the estimate stays inside it.
+    """Where the estimate diverged for good: the first reference sample of the excursion past the bound
+    ``max(s(t), floor)`` that lasts to the end of the estimate (``s(t)``: the path length the reference has travelled
+    since its first sample; the error as :func:`position_errors`: no alignment, the estimate interpolated at the
+    reference stamps); None when the estimate ends inside the bound (a transient excursion that comes back is an
+    error, not a divergence).
 
     A dead-reckoned estimate whose speeds are right is at most ``2 s(t)`` off, and only when it went the opposite
     way: past ``s(t)`` the estimate is farther from the robot than the robot is from its start, i.e. it says
@@ -72,8 +74,9 @@ def divergence(ref: Trajectory, est: Trajectory, floor: float = DIVERGENCE_FLOOR
     path = np.concatenate(([0.0], np.cumsum(np.hypot(np.diff(ref.x), np.diff(ref.y)))))
     err = np.hypot(x - ref.x, y - ref.y)
     bound = np.maximum(path, floor)
-    out = np.flatnonzero(np.isfinite(err) & (err > bound))
-    if out.size == 0:
+    idx = np.flatnonzero(np.isfinite(err))
+    if idx.size == 0 or not err[idx[-1]] > bound[idx[-1]]:
         return None
-    i = int(out[0])
+    inside = idx[err[idx] <= bound[idx]]
+    i = int(idx[0]) if inside.size == 0 else int(idx[np.searchsorted(idx, inside[-1], side="right")])
     return Divergence(float(ref.t[i]), i, float(err[i]), float(bound[i]))

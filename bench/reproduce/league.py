@@ -101,7 +101,14 @@ def _score(run: Any, est: Any) -> tuple[float, Divergence | None]:
     if not ok.any():
         raise ValueError("the estimate has no finite pose")
     traj = Trajectory.planar(e["t"][ok], e["x"][ok], e["y"][ok], e["yaw"][ok], name=est.method)
-    return position_rms(ref, traj), divergence(ref, traj)
+    rms, div = position_rms(ref, traj), divergence(ref, traj)
+    if not ok[-1]:  # a filter that blew up to NaN / inf and stayed there: diverged where its last finite run ended
+        i_est = int(np.flatnonzero(ok)[-1]) + 1
+        t_bad = float(e["t"].iloc[i_est])
+        step = int(np.searchsorted(ref.t, t_bad))
+        if step < ref.t.size and (div is None or t_bad < div.t):
+            div = Divergence(float(ref.t[step]), step, math.nan, math.nan)
+    return rms, div
 
 
 _PATH = re.compile(r"(?<![\w.~-])/(?:[^\s:'\"/]+/)*([^\s:'\"/]+)")
