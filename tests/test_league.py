@@ -199,3 +199,15 @@ def test_an_estimate_that_ends_in_nan_is_a_divergence() -> None:
     assert rms == pytest.approx(0.0, abs=1e-12) and div is not None and div.t == pytest.approx(3.0) and div.step == 300
     rms, div = league._score(run, make_estimate("m", {}, t=t, x=0.2 * t, y=0 * t, yaw=0 * t))
     assert div is None
+
+
+def test_rank_compares_methods_on_the_same_scenarios() -> None:
+    """A method with numbers on fewer scenarios is ranked on the scenarios every method of the group has, not on
+    its own (a low median over easy scenarios does not put it first)."""
+    cells = [league.Cell("baseline.ideal_dd", "easy", [0.1] * 3), league.Cell("baseline.ideal_dd", "hard", [9.0] * 3),
+             league.Cell("wang2015.chi_lambda", "easy", [0.2] * 3),
+             league.Cell("wang2015.chi_lambda", "hard", [], error="cannot run here: its calibration failed (x)")]
+    md = league_markdown(cells, 3)
+    rows = [ln for ln in md.splitlines() if ln.startswith("| 1 |") or ln.startswith("| 2 |")]
+    assert rows[0].startswith("| 1 | baseline.ideal_dd | 4.55 |") and rows[1].startswith("| 2 | wang2015.chi_lambda | 0.2 (of 1) |")
+    assert "Ranked by the median over the 1 scenarios where every method here has a number (easy)." in md

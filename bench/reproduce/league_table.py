@@ -130,25 +130,32 @@ def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False,
            if extended else "The papers' configurations and the baselines (skidbench's own consistent configurations: "
            "`skidbench reproduce league --extended`, results/extended/league.md)."),
         "",
-        f"Rank and median: by the median over the scenarios of the method's means (of k scenarios when it has "
-        f"numbers on fewer). Bold: the best mean of a column within the group. A cell says \"diverged\" when an "
-        f"estimate's position error exceeded the path length the robot had travelled (at least {DIVERGENCE_FLOOR:g} m): "
-        "bench.metrics.divergence; such a cell has no number and no rank.",
+        f"Median: of the method's means over the scenarios (of k when it has numbers on fewer); the rank compares "
+        f"methods on the same scenarios (said per group). Bold: the best mean of a column within the group. A cell says \"diverged at t\" when an "
+        f"estimate's position error went past the path length the robot had travelled (at least {DIVERGENCE_FLOOR:g} m) "
+        "and stayed past it to the end, or the estimate ended in NaN (bench.metrics.divergence; t and the log step "
+        "of the first seed that did); such a cell has no number and no rank.",
     ]
     for title, (g, meths) in groups.items():
         med = {m: median_over_scenarios(by[(m, s)] for s in scen if (m, s) in by) for m in meths}
-        order = sorted(meths, key=lambda m: (not math.isfinite(med[m][0]), med[m][0] if math.isfinite(med[m][0]) else 0, m))
+        common = [s for s in scen if all((m, s) in by and math.isfinite(by[(m, s)].summary()[0]) for m in meths)]
+        key = {m: median_over_scenarios(by[(m, s)] for s in common)[0] if common else med[m][0] for m in meths}
+        order = sorted(meths, key=lambda m: (not math.isfinite(key[m]), key[m] if math.isfinite(key[m]) else 0, m))
         best = {}
         for s in scen:
             means = [(by[(m, s)].summary()[0], m) for m in meths if (m, s) in by]
             means = [x for x in means if math.isfinite(x[0])]
             best[s] = min(means)[1] if len(means) > 1 else None
-        lines += ["", f"## {title}", "", f"Methods here read {g.reads}.", "",
+        ranked_by = ("the median over all scenarios" if len(common) == len(scen) else
+                     f"the median over the {len(common)} scenarios where every method here has a number "
+                     f"({', '.join(common)})" if common else "each method's own median (no scenario has a number "
+                     "for every method here)")
+        lines += ["", f"## {title}", "", f"Methods here read {g.reads}. Ranked by {ranked_by}.", "",
                   "| rank | method | median | " + head + " |", "|---|---|---|" + "---|" * len(scen)]
         rank = 0
         for m in order:
             value, k = med[m]
-            rank_txt = str(rank := rank + 1) if math.isfinite(value) else "-"
+            rank_txt = str(rank := rank + 1) if math.isfinite(key[m]) else "-"
             med_txt = "-" if not math.isfinite(value) else _fmt(value) + ("" if k == len(scen) else f" (of {k})")
             row = [rank_txt, m, med_txt]
             for s in scen:
