@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
+from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
 from bench.schema import SpecError, build
 from bench.sources import Source, Sources, default_sources, file_sources, parameters
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
 
 
 def _positive(x: float) -> bool:

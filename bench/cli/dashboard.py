@@ -53,9 +53,10 @@ def run_asv(repo: Path, results_dir: Path, html_dir: Path) -> int:
 
 def _dashboard(a: argparse.Namespace) -> int:
     from bench.report.dashboard import render_dashboard
+    from bench.paths import default_results
     from bench.reproduce.runner import REPO
 
-    results = a.results or (REPO / "results")
+    results = a.results or default_results()
     out = a.out or (results / "dashboard")
     if a.asv:
         rc = run_asv(REPO, results, out / "asv")

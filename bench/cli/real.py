@@ -5,15 +5,14 @@ Registered as an extra by :mod:`bench.cli.reproduce` (first of the extras, as be
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 
 def data_root() -> Path:
-    """Where measured data lives: $SKIDBENCH_DATA, else ../shared/data beside the repository."""
-    from bench.reproduce.runner import REPO
+    """Where measured data lives: $SKIDBENCH_DATA, else ../shared/data beside the checkout (bench.paths)."""
+    from bench.paths import default_data
 
-    return Path(os.environ.get("SKIDBENCH_DATA", REPO.parent / "shared" / "data"))
+    return default_data()
 
 
 def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: < 1 min

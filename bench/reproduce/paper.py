@@ -22,13 +22,14 @@ from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import REPO, Runner
 from bench.reproduce.sources import calibration_targets
+from bench.paths import default_results
 from bench.spec import SCENARIO_DIR, SpecError
 
 __all__ = ["PAPERS_DIR", "RESULTS", "Context", "load_paper", "claim_result", "published_values", "mean_ci",
            "list_papers", "PaperResult", "reproduce_paper"]
 
 PAPERS_DIR = SCENARIO_DIR / "papers"
-RESULTS = REPO / "results"
+RESULTS = default_results()  # the checkout's results/, installed: ./results (bench.paths)
 
 
 @dataclass

@@ -19,7 +19,7 @@ def code_key(*extra: str) -> str:
     platform, terrain and paper files, the installed package versions, plus ``extra``."""
     h = hashlib.sha256()
     for folder, pattern in (("bench", "**/*.py"), ("bench", "**/*.c"), ("methods", "**/*.py"), ("methods", "**/*.c"),
-                            ("scenarios", "**/*.toml")):
+                            ("scenarios", "**/*.toml"), ("bench/scenarios", "**/*.toml")):  # checkout / installed
         for p in sorted((REPO / folder).glob(pattern)):
             h.update(str(p.relative_to(REPO)).encode())
             h.update(p.read_bytes())

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 from bench.report.io import atomic_write_json, atomic_write_text, dumps_json
 from bench.reproduce.claims import _fmt, row_ratio
 from bench.reproduce.provenance import git_commit, package_versions
+from bench.paths import default_results
 from bench.reproduce.runner import REPO, Runner
 
 if TYPE_CHECKING:
@@ -418,7 +419,7 @@ def link_extras(results_dir: Path, quick: bool) -> Path | None:
 def history_path(results_dir: Path) -> Path:
     """``history.jsonl`` of a results folder; ``results/quick/`` and ``results/extended/`` write to the one of
     ``results/`` (one history per project, read by the dashboard)."""
-    results = REPO / "results"
+    results = default_results()
     sub = Path(results_dir).resolve()
     return (results if sub in (results / "quick", results / "extended") else Path(results_dir)) / "history.jsonl"
 

@@ -12,24 +12,23 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import os
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
+from bench.paths import CHECKOUT as REPO, PACKAGE, default_cache
 from bench.run import Run
 from bench.spec import Scenario
 
-REPO = Path(__file__).resolve().parents[2]
-DEFAULT_CACHE = Path(os.environ.get("SKIDBENCH_CACHE", REPO / ".cache" / "runs"))
+DEFAULT_CACHE = default_cache()
 
 
 @functools.lru_cache(maxsize=1)
 def testbed_code_hash() -> str:
     h = hashlib.sha256()
-    for p in sorted([*(REPO / "bench" / "sim").glob("*.py"), *(REPO / "bench" / "sim").glob("*.c")]):
+    for p in sorted([*(PACKAGE / "sim").glob("*.py"), *(PACKAGE / "sim").glob("*.c")]):
         h.update(p.name.encode())
         h.update(p.read_bytes())
     return h.hexdigest()[:16]
