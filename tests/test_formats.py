@@ -16,7 +16,7 @@ from bench.formats import (ImportMapping, import_bag, import_csv, load_mapping, 
                            run_to_tum, write_tum)
 from bench.kinematics import integrate_se2
 from bench.registry import make_estimate
-from bench.run import Run, from_arrays
+from bench.run import Run, RunError, from_arrays
 from bench.spec import SpecError, load_platform
 
 # ------------------------------------------------------------------------------------------
@@ -188,6 +188,47 @@ def test_run_to_tum_sources(tmp_path: Path) -> None:
     est = make_estimate("m", t=t, x=t + 1, y=t, yaw=np.zeros(10))
     tr = read_tum(run_to_tum(run, est, tmp_path / "est.tum"))
     assert np.array_equal(tr.x, t + 1)
+
+
+def test_tum_export_has_the_full_attitude_and_one_z_frame(tmp_path: Path) -> None:
+    """The truth's roll and pitch are in its quaternion (ZYX Euler as the testbed logs them), z is the height change
+    since the first pose for truth and estimate alike, so evo's unaligned APE between a planar estimate that is
+    right in x, y and the truth is the planar error (0 here), not the body origin's height."""
+    from evo.core import metrics, sync
+    from evo.tools import file_interface
+    from scipy.spatial.transform import Rotation
+
+    n = 50
+    t = np.arange(n) * 0.1
+    yaw, pitch, roll = 0.3 * t, 0.2 * np.sin(t), -0.1 * np.cos(t)
+    run = from_arrays({"t": t, "truth_x": t, "truth_y": t ** 2, "truth_z": 0.085 + 0.01 * t, "truth_yaw": yaw,
+                       "truth_pitch": pitch, "truth_roll": roll}, {"run_id": "r"})
+    tr = read_tum(run_to_tum(run, "truth", tmp_path / "truth.tum"))
+    want = Rotation.from_euler("ZYX", np.column_stack([yaw, pitch, roll])).as_matrix()
+    assert np.allclose(tr.rot, want, atol=1e-12) and np.allclose(tr.xyz[:, 2], 0.01 * t, atol=1e-15)
+    est = make_estimate("m", t=t, x=t, y=t ** 2, yaw=yaw)  # planar: no z, roll, pitch columns
+    run_to_tum(run, est, tmp_path / "est.tum")
+    ref = file_interface.read_tum_trajectory_file(str(tmp_path / "truth.tum"))
+    ev = file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum"))
+    ref, ev = sync.associate_trajectories(ref, ev)
+    ape = metrics.APE(metrics.PoseRelation.translation_part)
+    ape.process_data((ref, ev))
+    assert ape.get_statistic(metrics.StatisticsType.max) == pytest.approx(0.049, abs=1e-9)  # the truth's 0.01 t climb
+    flat = from_arrays({"t": t, "truth_x": t, "truth_y": t ** 2, "truth_z": np.full(n, 0.085), "truth_yaw": yaw},
+                       {"run_id": "f"})
+    run_to_tum(flat, "truth", tmp_path / "flat.tum")
+    ref = file_interface.read_tum_trajectory_file(str(tmp_path / "flat.tum"))
+    ref, ev = sync.associate_trajectories(ref, file_interface.read_tum_trajectory_file(str(tmp_path / "est.tum")))
+    ape.process_data((ref, ev))
+    assert ape.get_statistic(metrics.StatisticsType.max) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_tum_export_without_a_finite_pose_names_the_channels(tmp_path: Path) -> None:
+    run = from_arrays({"t": np.arange(3.0), "truth_x": np.full(3, np.nan), "truth_y": np.zeros(3),
+                       "truth_yaw": np.zeros(3)}, {"run_id": "r"})
+    with pytest.raises(RunError, match="truth_x/truth_y/truth_yaw.*no finite pose"):
+        run_to_tum(run, "truth", tmp_path / "x.tum")
+    assert not (tmp_path / "x.tum").exists()
 
 
 # ------------------------------------------------------------------------------------------

@@ -20,6 +20,8 @@ import argparse
 import sys
 from typing import Any, Callable, Sequence
 
+from bench.metrics.trajectory import MetricError
+from bench.registry import CalibrationLeak
 from bench.run import RunError
 from bench.spec import SpecError
 
@@ -69,6 +71,21 @@ def _load_optional_commands() -> None:
                 raise
 
 
+def count(minimum: int) -> Callable[[str], int]:
+    """An argparse type: an integer >= ``minimum`` (``--workers 0`` or ``--seed -1`` is a usage error, exit 2)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"{value} must be >= {minimum}")
+        return value
+
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``skidbench`` program.  Called as a program (``argv`` None) it first re-executes itself with numpy's
     and OpenBLAS's CPU dispatch pinned (:func:`bench.cpu.reexec_pinned`: the same runs on any x86-64 CPU)."""
@@ -86,6 +103,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyError as exc:
         print(f"error: {exc.args[0] if exc.args else exc}", file=sys.stderr)
         return 2
+    except (CalibrationLeak, MetricError) as exc:  # a method scored on its own calibration run; nothing to score
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

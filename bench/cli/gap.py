@@ -16,7 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from bench.cli import command, parse_sets
+from bench.cli import command, count, parse_sets
 
 
 def gap_args(p: argparse.ArgumentParser) -> None:
@@ -27,7 +27,7 @@ def gap_args(p: argparse.ArgumentParser) -> None:
                    help="override a spec field of the nominal model, e.g. --set terrain.mu_sa=0.5")
     p.add_argument("--json", dest="json_out", type=Path, default=None, help="write the result as JSON here")
     p.add_argument("--report-dir", type=Path, default=None, help="write markdown + figure + JSON here")
-    p.add_argument("--workers", type=int, default=None, help="simulation processes (default min(2, cpus))")
+    p.add_argument("--workers", type=count(1), default=None, help="simulation processes (default min(2, cpus))")
     p.add_argument("--quiet", action="store_true")
 
 

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 from typing import Any, Mapping
 
-from bench.cli import _progress, command
+from bench.cli import _progress, command, count
 from bench.cli.real import _extra_real, data_root
 from bench.report.io import atomic_write_text
 
@@ -37,7 +37,7 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--extended", action="store_true",
                    help="also the studies beyond the papers' tables and headline claims (the NEES null distribution and "
                         "its replication, ablations); default output folder results/extended/")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--workers", type=count(1), default=os.cpu_count() or 1)
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS")
     p.add_argument("--results", type=Path, default=None,
                    help="output folder (default results/, results/quick/ with --quick, results/extended/ with --extended)")

@@ -14,7 +14,7 @@ import json
 import sys
 from pathlib import Path
 
-from bench.cli import _progress, command, parse_sets
+from bench.cli import _progress, command, count, parse_sets
 from bench.report.io import dumps_json
 
 
@@ -62,7 +62,7 @@ command("list", "scenarios, platforms, terrains and registered methods")((_list_
 # ------------------------------------------------------------------------------------------ simulate
 def _sim_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenario", help="scenario name (scenarios/<name>.toml) or path")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=count(0), default=0)
     p.add_argument("--set", dest="sets", action="append", metavar="KEY=VALUE",
                    help="override any spec field, e.g. --set terrain.mu_sa=0.5")
     p.add_argument("-o", "--output", required=True, type=Path)
@@ -133,13 +133,23 @@ def _est_args(p: argparse.ArgumentParser) -> None:
 def _estimate(a: argparse.Namespace) -> int:
     from bench import registry
     from bench.report.io import atomic_write_text
-    from bench.run import Run
+    from bench.run import Run, RunError
 
     method = registry.get(a.method)
     if a.calibrate:
         method = registry.calibrate(method, [Run.from_parquet(p).validate() for p in a.calibrate])
     run = Run.from_parquet(a.run).validate()
-    est = registry.estimate(method, run)
+    try:
+        est = registry.estimate(method, run)
+    except (RuntimeError, ValueError) as exc:
+        if isinstance(exc, (RunError, registry.CalibrationLeak)):
+            raise
+        if a.calibrate:  # a calibrated method that fails on the run: a defect to see whole, not a usage error
+            raise
+        # uncalibrated: the method's parameters come from calibration runs (Mandow's GA, Liu's ICR fit, ...)
+        print(f"error: {a.run}: {a.method} cannot estimate uncalibrated ({exc}); give calibration runs with "
+              "--calibrate RUN [RUN ...]", file=sys.stderr)
+        return 2
     atomic_write_text(a.output, est.data.to_csv(index=False))
     print(f"wrote {a.output} ({len(est.data)} rows)")
     return 0

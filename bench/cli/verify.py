@@ -9,13 +9,13 @@ import argparse
 import json
 from pathlib import Path
 
-from bench.cli import command
+from bench.cli import command, count
 
 
 # ------------------------------------------------------------------------------------------ determinism
 def _verify_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("manifest", type=Path, nargs="?", default=None, help="default results/runs_manifest.json")
-    p.add_argument("--workers", type=int, default=1)
+    p.add_argument("--workers", type=count(1), default=1)
     p.add_argument("--limit", type=int, default=None, help="only the first N runs")
 
 

@@ -75,16 +75,42 @@ def read_tum(path: str | Path) -> Trajectory:
     return Trajectory(mat[:, 0], mat[:, 1:4], rot, name=path.stem)
 
 
-def run_to_tum(run: Run, source: Any = "truth", path: str | Path | None = None) -> str | Path:
-    """TUM export of a Run's ``truth``/``ref``/``gnss`` pose channels or of an Estimate.
+def _pose_rows(frame: Any, prefix: str, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, xyz, quat_xyzw) of the rows with a finite pose: ``{prefix}x, y, yaw`` and, when the columns exist,
+    ``z`` (as the height change since the first pose) and ``roll``, ``pitch`` (the testbed's ZYX Euler angles,
+    ``Rotation.from_euler("ZYX", [yaw, pitch, roll])``; 0 where absent)."""
+    from scipy.spatial.transform import Rotation
+
+    col = {k: np.asarray(frame[f"{prefix}{k}"], float) for k in ("x", "y", "yaw", "z", "roll", "pitch")
+           if f"{prefix}{k}" in frame.columns}
+    t = np.asarray(frame["t"], float)
+    ok = np.isfinite(t) & np.isfinite(col["x"]) & np.isfinite(col["y"]) & np.isfinite(col["yaw"])
+    for k in ("z", "roll", "pitch"):
+        if k in col:
+            ok &= np.isfinite(col[k])
+    if not ok.any():
+        raise RunError(where, f"{prefix}x/{prefix}y/{prefix}yaw", "no finite pose", "TUM export needs one pose at least")
+    z = col["z"][ok] - col["z"][ok][0] if "z" in col else np.zeros(int(ok.sum()))
+    euler = np.column_stack([col["yaw"][ok], *(col[k][ok] if k in col else np.zeros(int(ok.sum()))
+                                               for k in ("pitch", "roll"))])
+    quat = Rotation.from_euler("ZYX", euler).as_quat()  # x, y, z, w
+    return t[ok], np.column_stack([col["x"][ok], col["y"][ok], z]), quat
+
+
+def run_to_tum(run: Run | None, source: Any = "truth", path: str | Path | None = None) -> str | Path:
+    """TUM export of a Run's ``truth``/``ref``/``gnss`` pose channels or of an Estimate (``source``).
+
+    Truth and estimates are written in one frame: x, y as logged, z as the height change since the first pose
+    (the truth logs the body origin's height, 0.085 m on the P3-AT at rest, an estimate starts at 0), and the full
+    attitude where the channels have it (the truth's and Yi's EKF's roll and pitch; a planar estimate: yaw only).
+    evo's APE on two exports of a planar run then equals the planar position error.
 
     Returns the written path when ``path`` is given, otherwise the TUM text."""
     if isinstance(source, str):
-        traj = Trajectory.from_run(run, source)
+        if run is None:
+            raise ValueError("run_to_tum: a pose source name needs a run")
+        t, xyz, quat = _pose_rows(run.data, f"{source}_", run.where)
     else:
-        traj = Trajectory.from_estimate(source)
-    if path is None:
-        half = 0.5 * traj.yaw
-        quat = np.column_stack([np.zeros(len(traj)), np.zeros(len(traj)), np.sin(half), np.cos(half)])
-        return _tum_text(traj.t, traj.xyz, quat)
-    return write_tum(path, traj.t, traj.x, traj.y, traj.yaw, traj.xyz[:, 2])
+        t, xyz, quat = _pose_rows(source.data, "", str(path or getattr(source, "method", "estimate")))
+    text = _tum_text(t, xyz, quat)
+    return text if path is None else _atomic_write_text(Path(path), text)
