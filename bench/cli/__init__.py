@@ -63,7 +63,7 @@ def _load_optional_commands() -> None:
     import importlib
 
     for mod in ("bench.cli.simulate", "bench.cli.reproduce", "bench.cli.formats", "bench.cli.verify",
-                "bench.cli.dashboard", "bench.cli.gap"):
+                "bench.cli.dashboard", "bench.cli.gap", "bench.cli.evaluate"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

@@ -212,9 +212,9 @@ def _reproduce(a: argparse.Namespace) -> int:
             # the extras run beside the papers, in a process of their own that waits on their pools (longest first):
             # the cores the last paper jobs leave idle do the league and the stress cases.  A process, not a thread:
             # the pools fork, and a fork from a process with a busy second thread can copy a lock that thread holds
-            from concurrent.futures import ProcessPoolExecutor
+            from bench.procs import process_pool
 
-            with ProcessPoolExecutor(max_workers=1) as beside:
+            with process_pool(1) as beside:
                 fut = beside.submit(_extras_job, extras, results_dir, a.quick, a.workers, extended)
                 try:
                     papers_stage()

@@ -13,7 +13,7 @@ from bench.metrics import Trajectory
 from bench.report.io import atomic_write_text
 from bench.run import Run, RunError
 
-__all__ = ["TUM_HEADER", "write_tum", "read_tum", "run_to_tum"]
+__all__ = ["TUM_HEADER", "write_tum", "read_tum", "run_to_tum", "pose_rows"]
 
 TUM_HEADER = "# timestamp tx ty tz qx qy qz qw"
 
@@ -75,7 +75,7 @@ def read_tum(path: str | Path) -> Trajectory:
     return Trajectory(mat[:, 0], mat[:, 1:4], rot, name=path.stem)
 
 
-def _pose_rows(frame: Any, prefix: str, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pose_rows(frame: Any, prefix: str, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(t, xyz, quat_xyzw) of the rows with a finite pose: ``{prefix}x, y, yaw`` and, when the columns exist,
     ``z`` (as the height change since the first pose) and ``roll``, ``pitch`` (the testbed's ZYX Euler angles,
     ``Rotation.from_euler("ZYX", [yaw, pitch, roll])``; 0 where absent)."""
@@ -109,8 +109,8 @@ def run_to_tum(run: Run | None, source: Any = "truth", path: str | Path | None =
     if isinstance(source, str):
         if run is None:
             raise ValueError("run_to_tum: a pose source name needs a run")
-        t, xyz, quat = _pose_rows(run.data, f"{source}_", run.where)
+        t, xyz, quat = pose_rows(run.data, f"{source}_", run.where)
     else:
-        t, xyz, quat = _pose_rows(source.data, "", str(path or getattr(source, "method", "estimate")))
+        t, xyz, quat = pose_rows(source.data, "", str(path or getattr(source, "method", "estimate")))
     text = _tum_text(t, xyz, quat)
     return text if path is None else _atomic_write_text(Path(path), text)

@@ -65,6 +65,7 @@ from scipy.optimize import least_squares, lsq_linear, minimize_scalar
 from bench.gap.catalogue import Effect, ModelConfig
 from bench.gap.model import Grid, sample_trace
 from bench.gap.residuals import ResidualSpace
+from bench.procs import process_pool
 from bench.spec import Scenario
 
 REFINE_MAX_NFEV = 8
@@ -143,7 +144,7 @@ def _pool(n: int) -> ProcessPoolExecutor:
         ctx = mp.get_context("fork")
     except ValueError:  # no fork on this platform: spawn (slower start, same results)
         ctx = mp.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=n, mp_context=ctx)
+    return process_pool(n, mp_context=ctx)
 
 
 # ------------------------------------------------------------------------------------------------

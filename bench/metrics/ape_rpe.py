@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike
 from bench.metrics.alignment import Alignment, align
 from bench.metrics.trajectory import MetricError, Trajectory, _tmul, associate
 
-__all__ = ["Stats", "statistics", "ErrorResult", "ape", "rpe", "rpe_pairs"]
+__all__ = ["Stats", "statistics", "ErrorResult", "ape", "rpe", "rpe_pairs", "project_xy"]
 
 
 @dataclass(frozen=True)
@@ -123,14 +123,23 @@ def _prepare(ref: Trajectory, est: Trajectory, max_diff: float | None, sync: str
     return ref, est
 
 
+def project_xy(traj: Trajectory) -> Trajectory:
+    """evo's ``PosePath3D.project(Plane.XY)``: z = 0 and each rotation replaced by the rotation about z by its
+    static-xyz Euler angle about z (``atan2(R[1, 0], R[0, 0])``)."""
+    return Trajectory.planar(traj.t, traj.x, traj.y, traj.yaw, 0.0, name=traj.name)
+
+
 def ape(ref: Trajectory, est: Trajectory, relation: str = "translation", align_mode: str = "none",
         *, n_to_align: int = -1, max_diff: float | None = 0.01, sync: str = "nearest",
-        offset: float = 0.0) -> ErrorResult:
-    """Absolute pose error (evo ``main_ape.ape`` after ``associate_trajectories``)."""
+        offset: float = 0.0, project_to_plane: bool = False) -> ErrorResult:
+    """Absolute pose error (evo ``main_ape.ape`` after ``associate_trajectories``); ``project_to_plane``: evo's
+    ``--project_to_plane xy``, after the alignment as in evo."""
     rel = _relation(relation)
     ref, est = _prepare(ref, est, max_diff, sync, offset)
     al = align(ref, est, align_mode, n_to_align)
     est = al.apply(est)
+    if project_to_plane:
+        ref, est = project_xy(ref), project_xy(est)
     if rel in ("translation", "point_distance"):
         err = np.linalg.norm(est.xyz - ref.xyz, axis=1)
     elif rel == "point_distance_error_ratio":
@@ -247,13 +256,16 @@ def _all_pairs_by_path(dist: np.ndarray, delta: float, tol: float) -> np.ndarray
 def rpe(ref: Trajectory, est: Trajectory, relation: str = "translation", delta: float = 1,
         delta_unit: str = "frames", align_mode: str = "none", *, all_pairs: bool = False,
         rel_delta_tol: float = 0.1, pairs_from_reference: bool = False, n_to_align: int = -1,
-        max_diff: float | None = 0.01, sync: str = "nearest", offset: float = 0.0) -> ErrorResult:
+        max_diff: float | None = 0.01, sync: str = "nearest", offset: float = 0.0,
+        project_to_plane: bool = False) -> ErrorResult:
     """Relative pose error (evo ``main_rpe.rpe`` after ``associate_trajectories``).  ``t`` of the
-    result holds the estimate's timestamp of each pair's end pose."""
+    result holds the estimate's timestamp of each pair's end pose; ``project_to_plane`` as in :func:`ape`."""
     rel = _relation(relation)
     ref, est = _prepare(ref, est, max_diff, sync, offset)
     al = align(ref, est, align_mode, n_to_align)
     est = al.apply(est)
+    if project_to_plane:
+        ref, est = project_xy(ref), project_xy(est)
     pairs = rpe_pairs(ref if pairs_from_reference else est, delta, delta_unit, all_pairs, rel_delta_tol)
     i, j = pairs[:, 0], pairs[:, 1]
     info: dict[str, Any] = {"delta": delta, "delta_unit": delta_unit, "all_pairs": all_pairs,

@@ -169,12 +169,14 @@ def _paper_job(name: str, results_dir: Path, quick: bool, cache_dir: Path, exten
 def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, quick: bool,
                         log: Callable[[str], None], progress: Callable[[int, int], None] | None,
                         extended: bool = False) -> list[PaperResult]:
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
+
+    from bench.procs import process_pool
 
     rank = {p: i for i, p in enumerate(PAPER_COST_ORDER)}
     order = sorted(papers, key=lambda p: rank.get(p, len(rank)))
     done: dict[str, PaperResult] = {}
-    with ProcessPoolExecutor(max_workers=runner.workers) as ex:
+    with process_pool(runner.workers) as ex:
         # each job's simulation pool: at least 2 (a job whose time is simulation fills the core the other jobs
         # leave idle), else the cores shared among the concurrent jobs (no workers x workers processes)
         sim_workers = min(runner.workers, max(2, runner.workers // min(runner.workers, len(papers))))

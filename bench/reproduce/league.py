@@ -23,7 +23,6 @@ import functools
 import math
 import os
 import re
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -33,6 +32,7 @@ from scipy import stats
 
 from bench import registry
 from bench.metrics import Divergence, Trajectory, divergence, position_rms
+from bench.procs import process_pool
 from bench.report.io import atomic_write_text
 from bench.reproduce.runner import Runner
 from bench.run import RunError
@@ -255,7 +255,7 @@ def run_league(runner: Runner, n_seeds: int = 5, quick: bool = False, methods: l
         log(f"league: {sname} ({len(cal)} calibration runs, {len(scored)} scored)")
     if not parallel:
         return [_cell(name, sname, *runs[sname]) for name, sname in pairs]
-    with ProcessPoolExecutor(max_workers=runner.workers) as ex:
+    with process_pool(runner.workers) as ex:
         futures = [ex.submit(_cell_job, names_, sname, quick, seeds, str(runner.cache_dir))
                    for names_, sname in _jobs(pairs, runner.workers)]
         got = {(c.method, c.scenario): c for fut in futures for c in fut.result()}

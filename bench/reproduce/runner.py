@@ -13,12 +13,12 @@ from __future__ import annotations
 import functools
 import hashlib
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Sequence
 
 from bench.paths import CHECKOUT as REPO, PACKAGE, default_cache
+from bench.procs import process_pool
 from bench.run import Run
 from bench.spec import Scenario
 
@@ -177,7 +177,7 @@ class Runner:
             for g in groups:
                 tick(_simulate_to(*g))
             return
-        with ProcessPoolExecutor(max_workers=self.workers) as ex:
+        with process_pool(self.workers) as ex:
             for fut in [ex.submit(_simulate_to, *g) for g in groups]:
                 tick(fut.result())
 

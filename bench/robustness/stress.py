@@ -32,7 +32,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -40,6 +39,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from bench.robustness import faults as F
+from bench.procs import process_pool
 from bench.run import Run
 
 __all__ = ["StressSettings", "QUICK", "FULL", "liu_method", "fault_cases", "evaluate", "stress_rows",
@@ -287,7 +287,7 @@ def stress_rows(s: StressSettings = QUICK, workers: int | None = None) -> list[d
     if n == 1:
         done = [_task(tasks[i]) for i in order]
     else:
-        with ProcessPoolExecutor(max_workers=n) as pool:
+        with process_pool(n) as pool:
             done = list(pool.map(_task, [tasks[i] for i in order]))
     parts: list[list[dict[str, Any]]] = [[] for _ in tasks]
     for i, part in zip(order, done):

@@ -49,7 +49,6 @@ with a 5 Hz DGPS reference as in Sec. IV-C)
 from __future__ import annotations
 
 import math
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -62,6 +61,7 @@ from bench.registry import Estimate
 from bench.report.io import atomic_savefig
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
+from bench.procs import process_pool
 from methods import mandow2007 as M
 from methods.mandow2007.seeds import indexes, validation
 
@@ -131,7 +131,7 @@ def _identify(optimiser: str, settings: Any, segment_period: float, runs: Sequen
 def _identify_all(jobs: list[tuple[str, Any, float, list[Run]]], workers: int) -> list[Any]:
     if workers <= 1 or len(jobs) <= 1:
         return [_identify(*job) for job in jobs]
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as ex:
+    with process_pool(min(workers, len(jobs))) as ex:
         return list(ex.map(_identify, *zip(*jobs)))
 
 
