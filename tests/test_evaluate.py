@@ -60,6 +60,14 @@ def _ours(args: list[str], tmp: Path) -> dict:
     return json.loads(out.read_text())
 
 
+def _same_statistics(tool: Path, pair: tuple[Path, Path], tmp: Path, ours: list[str], theirs: list[str]) -> None:
+    ref, est = pair
+    want = _evo(tool, [str(ref), str(est), *theirs], tmp)
+    got = _ours([str(ref), str(est), *ours], tmp)
+    for k in ("rmse", "mean", "median", "std", "min", "max", "sse"):
+        assert got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-12), k
+
+
 @pytest.mark.parametrize("ours, theirs", [
     ([], []), (["--align", "se3"], ["-a"]), (["--align", "sim3"], ["-as"]),
     (["--align", "se3", "--project-to-plane"], ["-a", "--project_to_plane", "xy"]),
@@ -67,11 +75,7 @@ def _ours(args: list[str], tmp: Path) -> dict:
     (["--relation", "full"], ["-r", "full"]),
 ])
 def test_ape_equals_evo_ape(pair, tmp_path, ours, theirs) -> None:
-    ref, est = pair
-    want = _evo(EVO_APE, [str(ref), str(est), *theirs], tmp_path)
-    got = _ours([str(ref), str(est), *ours], tmp_path)
-    for k in ("rmse", "mean", "median", "std", "min", "max", "sse"):
-        assert got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-12), k
+    _same_statistics(EVO_APE, pair, tmp_path, ours, theirs)
 
 
 @pytest.mark.parametrize("ours, theirs", [
@@ -80,11 +84,7 @@ def test_ape_equals_evo_ape(pair, tmp_path, ours, theirs) -> None:
     (["--rpe-delta", "5", "--relation", "angle_deg"], ["-d", "5", "-r", "angle_deg"]),
 ])
 def test_rpe_equals_evo_rpe(pair, tmp_path, ours, theirs) -> None:
-    ref, est = pair
-    want = _evo(EVO_RPE, [str(ref), str(est), *theirs], tmp_path)
-    got = _ours([str(ref), str(est), *ours], tmp_path)
-    for k in ("rmse", "mean", "median", "std", "min", "max", "sse"):
-        assert got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-12), k
+    _same_statistics(EVO_RPE, pair, tmp_path, ours, theirs)
 
 
 def test_se2_on_planar_data_equals_evo_se3(tmp_path) -> None:
