@@ -175,8 +175,8 @@ class Run:
         meta = json.loads(raw) if raw else {}
         meta["source_file"] = str(path)
         data = table.to_pandas()
-        for c in data.columns:
-            if not np.issubdtype(data[c].dtype, np.number):
+        for c in data.columns:  # pandas' test: numpy's issubdtype raises on pandas' string / nullable dtypes
+            if not pd.api.types.is_numeric_dtype(data[c]) or pd.api.types.is_bool_dtype(data[c]):
                 raise RunError(str(path), c, str(data[c].dtype), "expected a numeric column")
         return cls(data.astype(np.float64), meta)
 

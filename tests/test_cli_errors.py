@@ -52,3 +52,19 @@ def test_estimate_of_a_method_that_needs_calibration_says_so(tmp_path, capsys) -
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(run) in err[0] and "liu2020.icr cannot estimate uncalibrated" in err[0]
     assert "--calibrate" in err[0] and not (tmp_path / "e.csv").exists()
+
+
+@pytest.mark.parametrize("dtype", ["str", "string", "bool"])
+def test_a_run_with_a_non_numeric_channel_is_named(tmp_path, capsys, dtype) -> None:
+    """A channel stored as text (or booleans) in a run's Parquet: one line naming the file, the column and its type."""
+    from bench.run import from_arrays
+
+    import numpy as np
+
+    run = from_arrays({"t": np.arange(5) * 0.1, "enc_wl": np.ones(5), "enc_wr": np.ones(5)}, {"run_id": "r"})
+    run.data["enc_wl"] = run.data["enc_wl"].astype(dtype) if dtype != "bool" else run.data["enc_wl"] > 0
+    path = tmp_path / "r.parquet"
+    run.data.to_parquet(path)
+    assert cli.main(["export-tum", str(path), "-o", str(tmp_path / "x.tum")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "'enc_wl'" in err[0] and "expected a numeric column" in err[0]
