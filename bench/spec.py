@@ -27,7 +27,6 @@ from bench.schema import SpecError, build
 from bench.sources import Source, Sources, default_sources, file_sources, parameters
 
 
-
 def _positive(x: float) -> bool:
     return x > 0 and math.isfinite(x)
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 import pytest
 
 from bench import cli
+from bench.metrics.trajectory import MetricError
+from bench.registry import CalibrationLeak
 
 
 @pytest.mark.parametrize("argv, words", [
@@ -28,9 +30,9 @@ def _raising(exc: BaseException):
 
 @pytest.mark.parametrize("exc, code, line", [
     (KeyboardInterrupt(), 130, "interrupted"),
-    (cli.CalibrationLeak("m: refusing to estimate on run 'r', which it was calibrated on"), 2,
+    (CalibrationLeak("m: refusing to estimate on run 'r', which it was calibrated on"), 2,
      "error: m: refusing to estimate on run 'r', which it was calibrated on"),
-    (cli.MetricError("no reference sample of 'truth' inside the time span of 'm'"), 2,
+    (MetricError("no reference sample of 'truth' inside the time span of 'm'"), 2,
      "error: no reference sample of 'truth' inside the time span of 'm'"),
 ])
 def test_interrupts_and_scoring_errors_end_in_one_line(monkeypatch, capsys, exc, code, line) -> None:

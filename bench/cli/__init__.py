@@ -20,8 +20,6 @@ import argparse
 import sys
 from typing import Any, Callable, Sequence
 
-from bench.metrics.trajectory import MetricError
-from bench.registry import CalibrationLeak
 from bench.run import RunError
 from bench.spec import SpecError
 
@@ -97,18 +95,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     a = ap.parse_args(argv)
     try:
         return COMMANDS[a.cmd][1](a)
-    except (SpecError, RunError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    except KeyError as exc:
-        print(f"error: {exc.args[0] if exc.args else exc}", file=sys.stderr)
-        return 2
-    except (CalibrationLeak, MetricError) as exc:  # a method scored on its own calibration run; nothing to score
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        if not _input_error(exc):
+            raise
+        print(f"error: {exc.args[0] if isinstance(exc, KeyError) and exc.args else exc}", file=sys.stderr)
+        return 2
+
+
+def _input_error(exc: Exception) -> bool:
+    """An error in what the user gave (a spec or log field, an unknown name, a method scored on its own calibration
+    run, nothing to score): one line, exit 2.  bench.registry and bench.metrics are imported only here, when a
+    command has failed, not at every start-up (bench.metrics pulls in scipy: 0.2 s)."""
+    if isinstance(exc, (SpecError, RunError, KeyError)):
+        return True
+    from bench.metrics.trajectory import MetricError
+    from bench.registry import CalibrationLeak
+
+    return isinstance(exc, (CalibrationLeak, MetricError))
 
 
 if __name__ == "__main__":

@@ -41,8 +41,8 @@ Two families:
      reference, no alignment (Liu et al. 2020, Table 2: "the GNSS position is regarded as the
      reference"); the estimate is interpolated linearly at the reference timestamps.
    * :func:`final_position_error` -- position error at the last common reference sample.
-   * :func:`divergence` -- the first instant the position error exceeds the reference's path length so far
-     (at least 1 m): the league reports it instead of an RMS.
+   * :func:`divergence` -- where the position error went past the reference's path length so far (at least
+     1 m) and stayed past it to the end: the league reports it instead of an RMS.
    * :func:`velocity_rms` -- RMS per body-velocity channel (vx, vy, wz) against truth.
    * :func:`segment_errors` -- Mandow et al. 2007 Sec. III eq. (13) and Table III: the path is
      cut into N short segments at the external-sensor samples; each segment is dead-reckoned

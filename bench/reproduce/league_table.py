@@ -9,7 +9,7 @@ estimate reads.
 Per cell: the mean position RMS over the seeds and its 95 % bootstrap interval; "diverged at t = ..." (time and
 log step of the first seed that left the bound of :func:`bench.metrics.divergence`) instead of a number; the reason
 in words when the method cannot run there.  Per method: the median of its means over the scenarios where it has
-one, and its rank in the group by that median.
+one, and its rank in the group by the median over the scenarios where every method of the group has a number.
 """
 from __future__ import annotations
 
@@ -72,14 +72,14 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}"
 
 
-def cell_text(c: Cell) -> str:
-    """What a table cell shows (at most 290 characters)."""
+def cell_text(c: Cell, summary: tuple[float, float, float] | None = None) -> str:
+    """What a table cell shows (at most 290 characters); ``summary``: ``c.summary()`` when already computed."""
     if c.error:
         return c.error if len(c.error) <= 290 else c.error[:287] + "..."
     if c.diverged:
         seed, t, step, _, _ = min(c.diverged, key=lambda d: d[1])
         return f"diverged at t = {t:.2f} s (step {step}, seed {seed}; {len(c.diverged)} of {len(c.values)} seeds)"
-    mean, lo, hi = c.summary()
+    mean, lo, hi = summary or c.summary()
     if not math.isfinite(mean):
         return "no finite score"
     return f"{_fmt(mean)} [{_fmt(lo)}, {_fmt(hi)}]"
@@ -87,8 +87,12 @@ def cell_text(c: Cell) -> str:
 
 def median_over_scenarios(cells: Iterable[Cell]) -> tuple[float, int]:
     """The median of a method's per-scenario means (scenarios where it has a number) and how many there are."""
-    means = [m for m in (c.summary()[0] for c in cells) if math.isfinite(m)]
-    return (float(np.median(means)), len(means)) if means else (math.nan, 0)
+    return _median(c.summary()[0] for c in cells)
+
+
+def _median(means: Iterable[float]) -> tuple[float, int]:
+    finite = [m for m in means if math.isfinite(m)]
+    return (float(np.median(finite)), len(finite)) if finite else (math.nan, 0)
 
 
 def _notes(cells: list[Cell], n_scenarios: int) -> list[str]:
@@ -112,6 +116,8 @@ def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False,
     """The league report: one ranked table per sensor group.  ``columns``: scenario -> "platform, terrain"."""
     scen = list(dict.fromkeys(c.scenario for c in cells))
     by = {(c.method, c.scenario): c for c in cells}
+    summ = {key: c.summary() for key, c in by.items()}  # one bootstrap per cell (each is 2000 resamples)
+    mean = {key: s[0] for key, s in summ.items()}
     groups: dict[str, tuple[SensorGroup, list[str]]] = {}
     for m in dict.fromkeys(c.method for c in cells):
         g = group_of(m)
@@ -137,14 +143,13 @@ def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False,
         "of the first seed that did); such a cell has no number and no rank.",
     ]
     for title, (g, meths) in groups.items():
-        med = {m: median_over_scenarios(by[(m, s)] for s in scen if (m, s) in by) for m in meths}
-        common = [s for s in scen if all((m, s) in by and math.isfinite(by[(m, s)].summary()[0]) for m in meths)]
-        key = {m: median_over_scenarios(by[(m, s)] for s in common)[0] if common else med[m][0] for m in meths}
+        med = {m: _median(mean[(m, s)] for s in scen if (m, s) in by) for m in meths}
+        common = [s for s in scen if all((m, s) in by and math.isfinite(mean[(m, s)]) for m in meths)]
+        key = {m: _median(mean[(m, s)] for s in common)[0] if common else med[m][0] for m in meths}
         order = sorted(meths, key=lambda m: (not math.isfinite(key[m]), key[m] if math.isfinite(key[m]) else 0, m))
         best = {}
         for s in scen:
-            means = [(by[(m, s)].summary()[0], m) for m in meths if (m, s) in by]
-            means = [x for x in means if math.isfinite(x[0])]
+            means = [(mean[(m, s)], m) for m in meths if (m, s) in by and math.isfinite(mean[(m, s)])]
             best[s] = min(means)[1] if len(means) > 1 else None
         ranked_by = ("the median over all scenarios" if len(common) == len(scen) else
                      f"the median over the {len(common)} scenarios where every method here has a number "
@@ -160,7 +165,7 @@ def league_markdown(cells: list[Cell], n_seeds: int, extended: bool = False,
             row = [rank_txt, m, med_txt]
             for s in scen:
                 c = by.get((m, s))
-                txt = "" if c is None else cell_text(c)
+                txt = "" if c is None else cell_text(c, summ[(m, s)])
                 row.append(f"**{txt}**" if best[s] == m and c is not None and not c.error else txt)
             lines.append("| " + " | ".join(row) + " |")
     notes = _notes(cells, len(scen))
@@ -173,11 +178,12 @@ def league_csv(cells: list[Cell]) -> str:
     """Every cell, one row: the group, the mean and interval (NaN when diverged), each seed's RMS, where each
     diverged seed left the bound (seed@t/step), the error."""
     out = ["method,group,scenario,mean,ci_low,ci_high,n,values,diverged,error"]
+    group = {m: group_of(m).title for m in dict.fromkeys(c.method for c in cells)}  # a registry lookup per method
     for c in cells:
         mean, lo, hi = c.summary()
         vals = ";".join(f"{v:.6g}" for v in c.values)
         div = ";".join(f"{seed}@{t:.3f}s/{step}" for seed, t, step, _, _ in c.diverged)
         err = c.error.replace('"', "'")
-        out.append(f"{c.method},{group_of(c.method).title},{c.scenario},{mean:.6g},{lo:.6g},{hi:.6g},"
+        out.append(f"{c.method},{group[c.method]},{c.scenario},{mean:.6g},{lo:.6g},{hi:.6g},"
                    f"{len(c.values)},{vals},{div},\"{err}\"")
     return "\n".join(out) + "\n"
