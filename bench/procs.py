@@ -9,9 +9,10 @@ import os
 import signal
 import sys
 from concurrent.futures import ProcessPoolExecutor
+from multiprocessing.managers import SyncManager
 from typing import Any
 
-__all__ = ["end_with_parent", "process_pool"]
+__all__ = ["end_with_parent", "process_pool", "queue_manager"]
 
 PR_SET_PDEATHSIG = 1  # linux/prctl.h
 
@@ -31,3 +32,11 @@ def end_with_parent(parent: int | None = None) -> None:
 def process_pool(max_workers: int, **kwargs: Any) -> ProcessPoolExecutor:
     """``ProcessPoolExecutor(max_workers, **kwargs)`` whose workers end with the process that made the pool."""
     return ProcessPoolExecutor(max_workers=max_workers, initializer=end_with_parent, initargs=(os.getpid(),), **kwargs)
+
+
+def queue_manager() -> SyncManager:
+    """A started :class:`multiprocessing.managers.SyncManager` (its ``Queue()`` proxies can be passed to pool jobs)
+    whose server process ends with this one, like the pools' workers.  Use as a context manager."""
+    manager = SyncManager()
+    manager.start(end_with_parent, (os.getpid(),))
+    return manager

@@ -1,4 +1,5 @@
-"""Pool workers end with their parent: SIGKILL of the process that made the pool leaves no worker behind."""
+"""Pool workers end with their parent: SIGKILL of the process that made the pool leaves no worker behind, nor the
+server process of the queue manager that carries reproduce's progress events (bench.procs.queue_manager)."""
 from __future__ import annotations
 
 import os
@@ -11,7 +12,7 @@ import pytest
 
 SCRIPT = """
 import os, sys, time
-from bench.procs import process_pool
+from bench.procs import process_pool, queue_manager
 
 def pid(_):
     time.sleep(0.2)
@@ -21,7 +22,8 @@ if __name__ == "__main__":
     ex = process_pool(2)
     pids = sorted(set(ex.map(pid, range(4))))
     ex.submit(time.sleep, 600)  # a worker busy when the parent dies
-    print(" ".join(map(str, pids)), flush=True)
+    manager = queue_manager()
+    print(" ".join(map(str, pids + [manager._process.pid])), flush=True)
     time.sleep(600)
 """
 
@@ -62,8 +64,9 @@ def test_a_plain_pool_would_leave_them(tmp_path) -> None:
     if not sys.platform.startswith("linux"):
         pytest.skip("Linux only")
     script = tmp_path / "parent.py"
-    script.write_text(SCRIPT.replace("from bench.procs import process_pool",
-                                     "from concurrent.futures import ProcessPoolExecutor as process_pool"))
+    script.write_text(SCRIPT.replace("from bench.procs import process_pool, queue_manager",
+                                     "from concurrent.futures import ProcessPoolExecutor as process_pool\n"
+                                     "from multiprocessing import Manager as queue_manager"))
     p = subprocess.Popen([sys.executable, str(script)], stdout=subprocess.PIPE, text=True)
     workers = [int(x) for x in p.stdout.readline().split()]
     os.kill(p.pid, signal.SIGKILL)

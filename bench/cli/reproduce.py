@@ -68,11 +68,12 @@ def register_extra(name: str, outputs: tuple[str, ...] = ("",)):
 def _extra_marker(name: str, results_dir: Path, quick: bool, extended: bool = False) -> Path:
     """A marker per (extra, everything it depends on): code, specs, data, output folder."""
     from bench.reproduce import code_key
+    from bench.reproduce.publish import final_dir
     from bench.reproduce.runner import DEFAULT_CACHE
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
-    key = code_key("extra", name, str(quick), str(Path(results_dir).resolve()), data_id, str(extended))
+    key = code_key("extra", name, str(quick), str(final_dir(Path(results_dir)).resolve()), data_id, str(extended))
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
 
 
@@ -123,19 +124,22 @@ def _remove_stale_temp_files(results_dir: Path) -> None:
 
 
 def _extras_job(extras: list[str], results_dir: Path, quick: bool, workers: int, extended: bool,
-                log: Any = None) -> dict[str, dict[str, Any]]:
+                log: Any = None, events: Any = None) -> dict[str, dict[str, Any]]:
     """The extras (longest first, :data:`EXTRA_COST_ORDER`), each skipped when its result-cache marker still holds
     (:func:`_extra_kept`); returns their stage times.  Run in a process of its own beside the papers (``--workers``
-    > 1) or after them."""
+    > 1) or after them.  ``events``: as :func:`bench.reproduce.reproduce`'s ("start" and "done" per extra)."""
     log = log or (lambda msg: print(msg, flush=True))
+    events = events or (lambda *ev: None)
     stages: dict[str, dict[str, Any]] = {}
     rank = {x: i for i, x in enumerate(EXTRA_COST_ORDER)}
     for name in sorted(extras, key=lambda x: rank.get(x, len(rank))):
         t_x = time.perf_counter()
+        events("start", name)
         marker = _extra_marker(name, results_dir, quick, extended)
         if _extra_kept(marker, results_dir):
             log(f"{name}: unchanged since the last run, results kept")
             stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": True}
+            events("done", name, True)
             continue
         log(f"extra: {name}")
         prefixes = EXTRA_OUTPUTS.get(name, ("",))
@@ -144,6 +148,7 @@ def _extras_job(extras: list[str], results_dir: Path, quick: bool, workers: int,
         marker.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(marker, json.dumps({"outputs": _extra_outputs(results_dir, before, prefixes)}, indent=1) + "\n")
         stages[name] = {"seconds": time.perf_counter() - t_x, "from_cache": False}
+        events("done", name, False)
     return stages
 
 
@@ -165,7 +170,6 @@ def _reproduce(a: argparse.Namespace) -> int:
             print(w)
         print(f"{len(checked)} paper declaration(s) checked: no error, {len(warnings)} warning(s)")
         return 0
-    _remove_stale_temp_files(results_dir)
     if extended:
         having = [p for p in R.list_papers() if any(t.get("extended") for t in R.load_paper(p)["tables"])]
         if papers is not None and (none := [p for p in papers if p not in having]):
@@ -181,49 +185,74 @@ def _reproduce(a: argparse.Namespace) -> int:
         print(f"error: reproduce --extended: {', '.join(bad)} has no extended variant "
               f"(those that have: {', '.join(EXTENDED_EXTRAS)})", file=sys.stderr)
         return 2
+    from bench.reproduce.publish import staged
+
+    with staged(results_dir) as stage:  # published as one set when everything below has finished
+        wall = _reproduce_into(a, stage, papers, extras, extended)
+    print(f"reproduce finished in {wall:.1f} s -> {results_dir}")
+    return 0
+
+
+def _reproduce_into(a: argparse.Namespace, results_dir: Path, papers: list[str] | None, extras: list[str],
+                    extended: bool) -> float:
+    """The papers and extras of ``reproduce`` written into ``results_dir`` (the staging folder), with a progress bar
+    per stage (:mod:`bench.cli.progress`); the wall time."""
+    import threading
+
+    from bench import reproduce as R
+    from bench.cli.progress import Sink, StageBars, expected_seconds, pump
+    from bench.procs import queue_manager
     from bench.reproduce.runner import DEFAULT_CACHE
 
+    _remove_stale_temp_files(results_dir)
     cache_was_empty = not any(Path(DEFAULT_CACHE).glob("*.parquet")) if Path(DEFAULT_CACHE).is_dir() else True
     t0 = time.perf_counter()
     stages: dict[str, dict[str, Any]] = {}
     stats = {"simulated": 0, "cached": 0}
-    with _progress() as prog:
-        task = prog.add_task("runs", total=None)
-
-        def progress(done: int, total: int) -> None:
-            prog.update(task, completed=done, total=total, description=f"simulating {done}/{total}")
+    with _progress() as prog, queue_manager() as manager:
+        lock, stop = threading.Lock(), threading.Event()
+        bars = StageBars(prog, expected_seconds(results_dir, a.quick))
+        q = manager.Queue()
+        events = Sink(q)  # picklable: the pool processes of the papers and of the extras send through it
+        reader = threading.Thread(target=pump, args=(q, bars, stop, lock), daemon=True)
+        reader.start()
 
         def log(msg: str) -> None:
-            prog.console.print(msg)
+            with lock:
+                prog.console.print(msg)
 
         run_papers = papers != [] and (papers is not None or a.all or not a.papers)
 
         def papers_stage() -> None:
             runner_stats: dict[str, Any] = {}
             R.reproduce(papers, quick=a.quick, workers=a.workers, dask_scheduler=a.dask_scheduler,
-                        results_dir=results_dir, log=log, progress=progress, extended=extended,
-                        stats_out=runner_stats)
+                        results_dir=results_dir, log=log, extended=extended, stats_out=runner_stats, events=events)
             stages.update(runner_stats.get("stages", {}))
             for k in stats:
                 stats[k] += runner_stats.get(k, 0)
 
-        beside_ok = all(EXTRA_OUTPUTS.get(x, ("",)) != ("",) for x in extras)
-        if run_papers and extras and beside_ok and a.workers > 1 and a.dask_scheduler is None:
-            # the extras run beside the papers, in a process of their own that waits on their pools (longest first):
-            # the cores the last paper jobs leave idle do the league and the stress cases.  A process, not a thread:
-            # the pools fork, and a fork from a process with a busy second thread can copy a lock that thread holds
-            from bench.procs import process_pool
+        try:
+            beside_ok = all(EXTRA_OUTPUTS.get(x, ("",)) != ("",) for x in extras)
+            if run_papers and extras and beside_ok and a.workers > 1 and a.dask_scheduler is None:
+                # the extras run beside the papers, in a process of their own that waits on their pools (longest
+                # first): the cores the last paper jobs leave idle do the league and the stress cases.  A process, not
+                # a thread: the pools fork, and a fork from a process with a busy second thread can copy a lock that
+                # thread holds
+                from bench.procs import process_pool
 
-            with process_pool(1) as beside:
-                fut = beside.submit(_extras_job, extras, results_dir, a.quick, a.workers, extended)
-                try:
+                with process_pool(1) as beside:
+                    fut = beside.submit(_extras_job, extras, results_dir, a.quick, a.workers, extended, None, events)
+                    try:
+                        papers_stage()
+                    finally:
+                        stages.update(fut.result())
+            else:
+                if run_papers:
                     papers_stage()
-                finally:
-                    stages.update(fut.result())
-        else:
-            if run_papers:
-                papers_stage()
-            stages.update(_extras_job(extras, results_dir, a.quick, a.workers, extended, log))
+                stages.update(_extras_job(extras, results_dir, a.quick, a.workers, extended, log, events))
+        finally:
+            stop.set()
+            reader.join()
     R.link_extras(Path(results_dir), a.quick)
     wall = time.perf_counter() - t0
     if (a.all or not a.papers) and (papers is None or extended):  # the whole reproduction: its stage table
@@ -232,8 +261,7 @@ def _reproduce(a: argparse.Namespace) -> int:
         doc = timing.record(Path(results_dir), a.quick, stages, wall, stats["simulated"], stats["cached"], a.workers,
                             cache_was_empty, extended)
         timing.insert(Path(results_dir) / ("REPORT_quick.md" if a.quick else "REPORT.md"), doc)
-    print(f"reproduce finished in {wall:.1f} s -> {results_dir}")
-    return 0
+    return wall
 
 
 command("reproduce", "regenerate paper tables, figures, REPORT.md and metrics.json")((_repro_args, _reproduce))

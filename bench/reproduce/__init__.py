@@ -87,7 +87,7 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
               dask_scheduler: str | None = None, results_dir: Path = RESULTS,
               log: Callable[[str], None] = print, progress: Callable[[int, int], None] | None = None,
               cache_dir: Path | None = None, extended: bool = False,
-              stats_out: dict | None = None) -> list[PaperResult]:
+              stats_out: dict | None = None, events: Callable[..., None] | None = None) -> list[PaperResult]:
     """Reproduce ``papers`` (default: all) into ``results_dir``.
 
     Parallelism: with a Dask scheduler, or one worker, the papers run one after the other in this
@@ -95,7 +95,11 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     themselves run as jobs in a process pool (longest first, :data:`PAPER_COST_ORDER`), each with a
     runner of its own (a pool of as many simulation workers) sharing the run cache: a paper's computation
     (filters, identification) is most of its time, so this keeps both cores busy where a pool of simulations
-    alone leaves one idle.  Every job is deterministic, so the results are the same bytes either way (tested)."""
+    alone leaves one idle.  Every job is deterministic, so the results are the same bytes either way (tested).
+
+    ``events``: a picklable callable given each paper's progress, ``events(kind, paper, *args)`` with kind "start",
+    "step" (tables done, total, table id), "sim" (runs simulated, total) and "done" (from the result cache?); the
+    command line's bars (:mod:`bench.cli.progress`)."""
     papers = papers or list_papers()
     check_declarations(papers, log)  # a malformed declaration stops here, before any run
     runner = Runner(workers=workers, dask_scheduler=dask_scheduler, progress=progress)
@@ -103,16 +107,22 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
         runner.cache_dir = Path(cache_dir)
     t0 = time.perf_counter()
     if workers > 1 and dask_scheduler is None and len(papers) > 1:
-        results = _reproduce_parallel(papers, runner, results_dir, quick, log, progress, extended)
+        results = _reproduce_parallel(papers, runner, results_dir, quick, log, progress, extended, events)
     else:
         results = []
         for p in papers:
             t_p, sim0 = time.perf_counter(), runner.stats["sim_seconds"]
             hits = runner.stats["result_cache_hits"]
-            results.append(reproduce_paper(p, runner, results_dir, quick, log, extended=extended))
+            if events is not None:
+                events("start", p)
+                runner.progress = _sim_events(events, p, progress)
+            results.append(reproduce_paper(p, runner, results_dir, quick, log, extended=extended,
+                                           step=_step_events(events, p)))
             runner.stats["stages"][p] = {"seconds": time.perf_counter() - t_p,
                                          "simulation_seconds": runner.stats["sim_seconds"] - sim0,
                                          "from_cache": runner.stats["result_cache_hits"] > hits}
+            if events is not None:
+                events("done", p, runner.stats["stages"][p]["from_cache"])
     seconds = time.perf_counter() - t0
     for res in results:
         for c in res.claims:
@@ -151,24 +161,46 @@ def check_declarations(papers: list[str], log: Callable[[str], None] = print) ->
 PAPER_COST_ORDER = ("wang2015", "liu2020", "mandow2007", "yi2009", "yu2010")
 
 
+def _sim_events(events: Callable[..., None] | None, paper: str,
+                also: Callable[[int, int], None] | None = None) -> Callable[[int, int], None] | None:
+    """A runner's progress callback sending "sim" events for ``paper`` (and calling ``also``)."""
+    if events is None:
+        return also
+
+    def sim(done: int, total: int) -> None:
+        events("sim", paper, done, total)
+        if also is not None:
+            also(done, total)
+    return sim
+
+
+def _step_events(events: Callable[..., None] | None, paper: str) -> Callable[[int, int, str], None] | None:
+    return None if events is None else (lambda done, total, label: events("step", paper, done, total, label))
+
+
 def _paper_job(name: str, results_dir: Path, quick: bool, cache_dir: Path, extended: bool = False,
-               sim_workers: int = 1) -> tuple[PaperResult, dict, dict]:
+               sim_workers: int = 1, events: Callable[..., None] | None = None) -> tuple[PaperResult, dict, dict]:
     """Worker: one paper with a runner of its own on the shared run cache (runs are written atomically,
     so two jobs asking for the same run at once both write the same bytes).  Its missing runs are simulated in a
     pool of ``sim_workers`` processes: a paper whose time is simulation (Wang's stiff tile at 1/1920 s) then
     uses the cores the other jobs leave idle (the runs are the same bytes on any number of workers)."""
-    runner = Runner(cache_dir=cache_dir, workers=sim_workers)
+    runner = Runner(cache_dir=cache_dir, workers=sim_workers, progress=_sim_events(events, name))
     t0 = time.perf_counter()
-    res = reproduce_paper(name, runner, results_dir, quick, log=lambda s: print(s, flush=True), extended=extended)
+    if events is not None:
+        events("start", name)
+    res = reproduce_paper(name, runner, results_dir, quick, log=lambda s: print(s, flush=True), extended=extended,
+                          step=_step_events(events, name))
     runner.stats["stages"][name] = {"seconds": time.perf_counter() - t0,
                                     "simulation_seconds": runner.stats["sim_seconds"],
                                     "from_cache": runner.stats["result_cache_hits"] > 0}
+    if events is not None:
+        events("done", name, runner.stats["stages"][name]["from_cache"])
     return res, runner.manifest, runner.stats
 
 
 def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, quick: bool,
                         log: Callable[[str], None], progress: Callable[[int, int], None] | None,
-                        extended: bool = False) -> list[PaperResult]:
+                        extended: bool = False, events: Callable[..., None] | None = None) -> list[PaperResult]:
     from concurrent.futures import as_completed
 
     from bench.procs import process_pool
@@ -180,7 +212,7 @@ def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, qu
         # each job's simulation pool: at least 2 (a job whose time is simulation fills the core the other jobs
         # leave idle), else the cores shared among the concurrent jobs (no workers x workers processes)
         sim_workers = min(runner.workers, max(2, runner.workers // min(runner.workers, len(papers))))
-        futures = {ex.submit(_paper_job, p, results_dir, quick, runner.cache_dir, extended, sim_workers): p
+        futures = {ex.submit(_paper_job, p, results_dir, quick, runner.cache_dir, extended, sim_workers, events): p
                    for p in order}
         for fut in as_completed(futures):
             res, manifest, stats = fut.result()

@@ -183,11 +183,12 @@ def _store_result(folder: Path, name: str, key: str, res: PaperResult) -> None:
 
 def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quick: bool = False,
                     log: Callable[[str], None] = lambda s: None, use_cache: bool = True,
-                    extended: bool = False) -> PaperResult:
+                    extended: bool = False, step: Callable[[int, int, str], None] | None = None) -> PaperResult:
     """Compute one paper's tables and claims and write ``results/<paper>/``.  When nothing the
     result depends on changed (:func:`code_key`), the previous result is re-written from the
     result cache instead of being recomputed.  ``extended``: the compute functions also run the studies
-    beyond the paper (:attr:`Context.extended`)."""
+    beyond the paper (:attr:`Context.extended`).  ``step(done, total, table id)`` is called as each table begins and
+    once all are done (the command line's progress bar)."""
     if quick and extended:
         raise ValueError("reproduce: --quick and --extended exclude each other")
     decl = load_paper(name)
@@ -211,7 +212,10 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     skipped = [t["id"] for t in decl["tables"] if t.get("extended") and not (extended or quick)]
     if skipped:
         ctx.info["extended_tables"] = skipped
+    ran = [t for t in decl["tables"] if t["id"] not in skipped]
     for tab in decl["tables"]:
+        if step is not None and tab["id"] not in skipped:
+            step(ran.index(tab), len(ran), tab["id"])
         if tab["id"] in skipped:  # a study beyond the paper's tables and headline claims: reproduce --extended
             log(f"{paper}: {tab['id']} — skipped (reproduce --extended)")
             continue
@@ -225,6 +229,8 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
             rep = got.get(row["metric"])
             rows.append({**row, "reproduced": rep, "verdict": row_verdict(rep, row, tab.get("published_on"))})
         tables.append({**tab, "rows_out": rows, "all_metrics": got})
+    if step is not None:
+        step(len(ran), len(ran), "claims")
     claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])
               if not claim_tables(c) & set(skipped)]
     served = sorted(set(runner.served))

@@ -418,9 +418,12 @@ def link_extras(results_dir: Path, quick: bool) -> Path | None:
 
 def history_path(results_dir: Path) -> Path:
     """``history.jsonl`` of a results folder; ``results/quick/`` and ``results/extended/`` write to the one of
-    ``results/`` (one history per project, read by the dashboard)."""
-    results = default_results()
-    sub = Path(results_dir).resolve()
+    ``results/`` (one history per project, read by the dashboard: a log across runs, so theirs is written at once, not
+    published with their set by :mod:`bench.reproduce.publish`)."""
+    from bench.reproduce.publish import final_dir
+
+    results = default_results().resolve()
+    sub = final_dir(Path(results_dir)).resolve()  # a staging folder: the folder it will be published as
     return (results if sub in (results / "quick", results / "extended") else Path(results_dir)) / "history.jsonl"
 
 
