@@ -34,10 +34,12 @@ def command(name: str, help_: str):
 
 
 def _progress():
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
 
-    return Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>5.1f}%"),
-                    TimeElapsedColumn(), TimeRemainingColumn(), transient=False)
+    # TaskProgressColumn: the percentage, blank while a bar has no total (pulsing) instead of "0.0%"
+    return Progress(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeElapsedColumn(),
+                    TimeRemainingColumn(), transient=False)
 
 
 def parse_sets(items: Sequence[str] | None) -> dict[str, Any]:
@@ -61,7 +63,7 @@ def _load_optional_commands() -> None:
     import importlib
 
     for mod in ("bench.cli.simulate", "bench.cli.reproduce", "bench.cli.formats", "bench.cli.verify",
-                "bench.cli.dashboard", "bench.cli.gap", "bench.cli.evaluate"):
+                "bench.cli.dashboard", "bench.cli.gap", "bench.cli.evaluate", "bench.cli.real"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:

@@ -1,11 +1,16 @@
-"""The real-data run of ``skidbench reproduce`` (the extra ``real``): where measured data lives
-(:func:`data_root`) and the DRIVE Husky benchmark plus its gap workflow (:func:`_extra_real`).
+"""Real data: ``skidbench real DATA... --platform PLATFORM --out DIR [--json F] [--fix NAME]`` (any robot's DRIVE
+window tables scored by every registered plugin with window models, outputs named ``<data>-<platform>.*``, the data's
+sanity checks printed and reported), and the real-data run of ``skidbench reproduce`` (the extra ``real``): where
+measured data lives (:func:`data_root`) and the DRIVE Husky benchmark plus its gap workflow (:func:`_extra_real`).
 
 Registered as an extra by :mod:`bench.cli.reproduce` (first of the extras, as before).
 """
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+
+from bench.cli import command
 
 
 def data_root() -> Path:
@@ -16,13 +21,15 @@ def data_root() -> Path:
 
 
 def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: < 1 min
-    from bench.real.benchmark import run_real_benchmark
+    from bench.real.benchmark import every_window_plugin, run_real_benchmark
+    from bench.real.league import write_real_league
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     if not table.is_file():
         print(f"real: skipped, no data at {table} (set SKIDBENCH_DATA to the folder holding drive_husky/)")
         return
-    res = run_real_benchmark(table, results_dir / "real")
+    res = run_real_benchmark(table, results_dir / "real", models=every_window_plugin())
+    print(f"real: {write_real_league(data_root(), results_dir / 'real', done={table: res})}")
     v = res["verdict"]
     print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
           f"{v['ideal_dd_median_trans']:.3f} m ({res['runtime_s']:.1f} s)")
@@ -33,3 +40,53 @@ def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # se
     ho = gap["doc"]["held_out"]["cost"]
     print(f"real gap: {gap['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> "
           f"{ho['after_mean']:.4g} ({gap['runtime_s']:.1f} s; total {res['runtime_s'] + gap['runtime_s']:.1f} s)")
+
+
+# ------------------------------------------------------------------------------------------ real
+def _real_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("data", nargs="+", type=Path, help="DRIVE window tables (.parquet, .pkl, .csv)")
+    p.add_argument("--platform", required=True,
+                   help="a platform name (skidbench list) or a TOML file with wheel_radius and track [m]")
+    p.add_argument("--out", type=Path, required=True, help="output folder (nothing is written anywhere else)")
+    p.add_argument("--json", type=Path, default=None, help="also write every data set's numbers to this JSON file")
+    p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
+    p.add_argument("--methods", default=None,
+                   help="comma-separated plugin names (default: every registered plugin with window models)")
+    p.add_argument("--fix", action="append", default=[], metavar="NAME",
+                   help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
+    p.add_argument("--no-figures", action="store_true")
+
+
+def _real(a: argparse.Namespace) -> int:
+    from bench.real.benchmark import every_window_plugin, run_real_benchmark
+    from bench.real.platform import kinematic_platform
+    from bench.report.io import atomic_write_text, dumps_json
+
+    plat = kinematic_platform(a.platform)
+    methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else every_window_plugin()
+    docs = {}
+    for data in a.data:
+        label = f"{data.stem}-{plat['name']}"
+        res = run_real_benchmark(data, a.out, a.seed, platform=plat, models=methods, figures=not a.no_figures,
+                                 label=label, fixes=a.fix)
+        for f in res["sanity"]["findings"]:
+            if not f["ok"]:
+                fix = f" (--fix {f['fix']} corrects it)" if f["fix"] else ""
+                print(f"warning: {data}: {f['check']}: {f['evidence']}{fix}")
+        for line in res["sanity"]["fixes"]:
+            print(f"{data}: corrected: {line}")
+        for name, why in res["skipped_models"].items():
+            print(f"{data}: {name} not scored: {why}")
+        v = res["verdict"]
+        print(f"{data}: {len(res['models'])} models on {res['n_test_windows']} held-out windows; best ICR model "
+              f"{v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
+              f"{v['ideal_dd_median_trans']:.3f} m -> {a.out / (label + '.md')}")
+        docs[str(data)] = {k: res[k] for k in res if k not in ("files", "runtime_s") and not k.startswith("_")}
+    if a.json:
+        atomic_write_text(a.json, dumps_json({"platform": plat, "methods": methods, "data": docs}, indent=1,
+                                             sort_keys=True) + "\n")
+    return 0
+
+
+command("real", "score the registered plugins on real DRIVE window tables: skidbench real DATA... --platform P "
+        "--out DIR")((_real_args, _real))

@@ -49,6 +49,7 @@ Files hold no wall-clock data, so the same input gives the same bytes; the runti
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import hashlib
 import math
 import os
@@ -63,6 +64,8 @@ from bench.kinematics import icr_inverse
 from bench.real.chi import chi_by_bin, testbed_chi
 from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform
 from bench.real.report import write_report
+from bench.real.sanity import apply_fixes, check_windows
+from bench.run import RunError
 from bench.real.windows import MIN_TURN, WindowModel, end_errors, tread_speeds, valid_windows, window_chi
 
 ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
@@ -90,6 +93,20 @@ def plugin_window_models(name: str, wheel_radius: float, track: float) -> list[W
         raise NoWindowModels(f"method '{name}' offers no window_models(wheel_radius, track): the real-data "
                              f"benchmark cannot score it (wrap a Run-based plugin in bench.real.adapter.PluginModel)")
     return list(method.window_models(wheel_radius, track))
+
+
+def every_window_plugin() -> list[str]:
+    """Every registered plugin that offers window models, ideal differential drive first, one plugin per row name
+    (Yi's EKF variants share their window rows, Mandow's GA and DE their kinematics: the first name in order)."""
+    rows: dict[str, str] = {}
+    order = {n: i for i, n in enumerate(DEFAULT_METHODS)}  # the default rows first, in their order
+    names = sorted(registry.discover(), key=lambda n: (order.get(n, len(order)), n))
+    for n in names:
+        method = registry.get(n)
+        if callable(getattr(method, "window_models", None)):
+            for m in method.window_models(1.0, 1.0):
+                rows.setdefault(m.name, n)
+    return list(dict.fromkeys(rows.values()))
 
 
 def resolve_models(models: Sequence[WindowModel | str] | None, wheel_radius: float, track: float
@@ -131,12 +148,15 @@ def _slope(x: np.ndarray, y: np.ndarray) -> float:
 def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0,
                        platform: str | Mapping[str, Any] | None = "husky",
                        wheel_radius: float | None = None, track: float | None = None,
-                       models: Sequence[WindowModel | str] | None = None, figures: bool = True) -> dict[str, Any]:
+                       models: Sequence[WindowModel | str] | None = None, figures: bool = True,
+                       label: str | None = None, fixes: Sequence[str] = ()) -> dict[str, Any]:
     """Run the real benchmark (module docstring) and write the report; returns the numbers.
 
     ``platform`` names the platform spec (default ``husky``); ``wheel_radius``/``track`` override it.
     ``models``: plugin names and/or :class:`WindowModel` objects (:func:`resolve_models`; default
-    :data:`DEFAULT_METHODS`).
+    :data:`DEFAULT_METHODS`).  ``label``: the output files' stem (default the platform's name).  The data's sanity
+    checks (:mod:`bench.real.sanity`) run on the scored windows and go to the report; ``fixes`` applies their
+    corrections first.
     """
     t_start = time.perf_counter()
     data_path, out_dir = Path(data_path), Path(out_dir)
@@ -148,10 +168,19 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     allw = import_drive_windows(data_path)
     ok = valid_windows(allw)
     w = allw.subset(ok)
+    findings = check_windows(w)
+    w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(w, seed)
     calib = w.subset(np.isin(w.calib_step, calib_steps))
     test = w.subset(np.isin(w.calib_step, test_steps))
-    fitted = [m.fit(calib) for m in resolve_models(models, r, B)]
+    fitted, skipped = [], {}
+    for m in resolve_models(models, r, B):
+        try:
+            fitted.append(m.fit(calib))
+        except RunError as exc:  # a channel the model reads is not in this data set
+            if models is not None and m.name in models:
+                raise
+            skipped[m.name] = str(exc)
     results = {m.name: evaluate(m, test) for m in fitted}
 
     # measured chi (all usable steady windows) and two independent checks of the time base
@@ -210,9 +239,14 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
                    "shared_sample_boundaries": {int(k): int(v) for k, v in
                                                 zip(*np.unique(allw.overlap[1:], return_counts=True))}},
         "verdict": verdict,
+        "sanity": {"findings": [dataclasses.asdict(f) for f in findings], "fixes": fixed},
+        "skipped_models": skipped,
     }
-    files = write_report(out, fitted, results, test, chi[usable], lam[usable], out_dir, name, figures)
+    files = write_report(out, fitted, results, test, chi[usable], lam[usable], out_dir, label or name, figures)
     out["files"] = [str(p) for p in files]
+    # per held-out window (not in the JSON: keys with "_"): the real league's bootstrap over steps
+    out["_windows"] = {"step": test.calib_step, "steady": test.steady,
+                       "errors": {k: (v["trans"], v["yaw"]) for k, v in results.items()}}
     out["runtime_s"] = time.perf_counter() - t_start
     return out
 

@@ -171,10 +171,15 @@ def _read_table(path: Path) -> pd.DataFrame:
         if suffix == ".parquet":
             return pd.read_parquet(path)
         if suffix in (".pkl", ".pickle"):
-            # DRIVE publishes pickles; only load files you trust (pickle can run code).
-            return pd.read_pickle(path)
+            # DRIVE publishes pickles: loaded by an unpickler that rebuilds numpy/pandas objects alone (a pickle can
+            # run any code: pd.read_pickle would)
+            from bench.real.restricted_pickle import load_table_pickle
+
+            return load_table_pickle(path)
         if suffix == ".csv":
             return pd.read_csv(path)
+    except RunError:
+        raise
     except Exception as exc:  # noqa: BLE001 - any reader failure is a bad input file
         raise RunError(str(path), "<file>", str(path), f"not a readable DRIVE table ({exc})") from None
     raise RunError(str(path), "<file>", suffix, "expected a .parquet, .pkl or .csv DRIVE table")

@@ -148,6 +148,14 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
         f"half calibrates. Calibration: {len(out['calib_steps'])} steps, {out['n_calib_windows']} windows. "
         f"Test: {len(out['test_steps'])} steps, {out['n_test_windows']} windows "
         f"({out['n_test_steady']} steady, {out['n_test_transitory']} transitory).\n")
+    if out.get("sanity"):
+        add("## Sanity checks of the data (bench.real.sanity)\n")
+        for f in out["sanity"]["findings"]:
+            fix = f" (`--fix {f['fix']}` corrects it)" if f["fix"] and not f["ok"] else ""
+            add(f"- {'ok' if f['ok'] else '**warning**'} `{f['check']}`: {f['evidence']}{fix}")
+        for line in out["sanity"]["fixes"]:
+            add(f"- corrected: {line}")
+        add("")
     add("## Fitted models (calibration half)\n")
     add("| model | description | parameters |")
     add("|---|---|---|")

@@ -1,0 +1,63 @@
+"""The platform of a real data set: a registered platform name, or a TOML file with what the scored models use.
+
+The window models of the real-data benchmark need the wheel radius and the track alone (``window_models(wheel_radius,
+track)``), so a robot the testbed has no spec for is described by
+
+    name = "my_robot"        # optional: the file's stem
+    wheel_radius = 0.3       # [m] from its maker's configuration
+    track = 0.9              # [m] wheel separation (centre to centre)
+
+(or the same keys under ``[platform]``).  Any other key is kept for the report.  Lengths may be given in cm or mm
+with a suffixed key (``wheel_radius_cm``); they are converted to metres here, at the file boundary.  A registered
+name (``husky``) or the path of a full testbed spec loads through :func:`bench.spec.load_platform`.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from bench.spec import SpecError, load_platform, to_dict
+
+__all__ = ["kinematic_platform", "REQUIRED"]
+
+REQUIRED = ("wheel_radius", "track")
+_LENGTH_UNITS = {"": 1.0, "_m": 1.0, "_cm": 0.01, "_mm": 0.001}
+
+
+def _length(doc: dict[str, Any], key: str, path: Path) -> float:
+    given = [(k, f) for suffix, f in _LENGTH_UNITS.items() if (k := key + suffix) in doc]
+    if not given:
+        raise SpecError(path, key, None, f"required field is missing (a length in m; the kinematic models use "
+                        f"{' and '.join(REQUIRED)})")
+    if len(given) > 1:
+        raise SpecError(path, key, [k for k, _ in given], "given more than once (in different units)")
+    k, factor = given[0]
+    v = doc[k]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+        raise SpecError(path, k, v, "expected a finite length > 0")
+    return float(v) * factor
+
+
+def kinematic_platform(spec: str | Path) -> dict[str, Any]:
+    """``{"name", "wheel_radius", "track", ...}`` [m] of a platform name or TOML path (module docstring)."""
+    path = Path(spec)
+    if path.suffix.lower() != ".toml":
+        return to_dict(load_platform(str(spec)))  # a registered name (SpecError names the choices)
+    if not path.is_file():
+        raise SpecError(path, "<file>", str(path), "platform file not found")
+    try:
+        doc = tomllib.loads(path.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise SpecError(path, "<file>", str(path), f"not TOML ({exc})") from None
+    if isinstance(doc.get("platform"), dict):
+        doc = doc["platform"]
+    out = {k: v for k, v in doc.items() if not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS)}
+    for key in REQUIRED:
+        out[key] = _length(doc, key, path)
+    name = out.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip():
+        raise SpecError(path, "name", name, "expected a non-empty name")
+    out["name"] = name.strip()
+    return out

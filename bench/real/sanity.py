@@ -1,0 +1,249 @@
+"""Sanity checks of a real data set before it is scored: defects a log carries that no model should be blamed for.
+
+Each check gives a :class:`Finding` (its evidence in numbers, a warning when the data look wrong, and the correction
+``--fix NAME`` applies, when one exists); :func:`check_windows` runs them on :class:`~bench.real.drive.DriveWindows`
+and :func:`apply_fixes` returns corrected windows.  The findings go to the report and its JSON (``sanity``).
+
+=====================  ================================================================  =====================
+check                  evidence                                                          warning when / fix
+=====================  ================================================================  =====================
+``gyro_sign``          slope of the window-mean ``imu_gz`` against the reference (ICP)  slope < 0 (``flip_gyro``:
+                       yaw rate, least squares through the origin, and their             ``imu_gz`` * -1); |slope|
+                       correlation                                                       < 0.5 or r < 0.5: axis?
+``imu_offset``         median over steady windows of the mean ``imu_ax``, ``imu_ay``     beyond 0.3 m/s^2 (2 deg
+                       (steady: no acceleration), and the intercept of the mean          of tilt) or 0.02 rad/s;
+                       ``imu_gz`` against the reference yaw rate (gyro bias)             ``imu_offset`` subtracts
+``update_rate``        each measured channel's effective rate: samples that differ      under 40 % of the table's
+                       from the one before, over the samples that move (a held         rate (no fix: a held
+                       sample repeats the last value; commands are held by design)      sample is no new data)
+``stale_reference``    share of windows whose reference pose at the last sample has     over 10 % (windows whose
+                       been held longer than the reference's own update interval (the   end is stale: dropped by
+                       score compares the end pose)                                      ``drop_stale``)
+``command_lag``        median time from a command step's half-way crossing to the      T10 > 1 s or < -0.1 s
+                       wheel speed's crossing of 10 % (T10) and 50 % (T50) of the step, (a clock offset between
+                       each transitory window joined to the one before it              the streams?); no fix
+=====================  ================================================================  =====================
+
+Thresholds are physical bounds, not fitted to the Husky table: a 0.3 m/s^2 accelerometer offset is 1.7 deg of
+tilt; a gyro following the heading with a slope under 0.5 misses half the rotation; a stream at under 40 % of the
+table's rate repeats more samples than it updates (the Husky's wheel speeds and ICP run at half its 20 Hz: reported,
+not flagged); the Husky's powertrain answers a step with T10 0.43 s and T50 0.75 s (measured: a slow response is
+the robot's, reported, not a defect), while a T10 beyond 1 s (half a DRIVE window) or a wheel speed ahead of its
+command are what a clock offset between the streams gives.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from bench.real.drive import DriveWindows
+from bench.spec import SpecError
+
+__all__ = ["Finding", "check_windows", "apply_fixes", "FIXES"]
+
+GYRO_MIN_SLOPE = 0.5
+IMU_MAX_OFFSET = 0.3  # [m/s^2]
+GYRO_MAX_BIAS = 0.02  # [rad/s]
+MIN_RATE_SHARE = 0.4
+MAX_STALE_SHARE = 0.10
+MAX_LAG = 1.0  # [s] T10 beyond half a DRIVE window: the transitory window cannot hold the response
+MAX_LEAD = 0.1  # [s] wheel speeds ahead of their command: a clock offset the other way
+MIN_STEP = 1.0  # [rad/s] command steps smaller than this are not timed
+FIXES = ("flip_gyro", "imu_offset", "drop_stale")
+
+
+@dataclass(frozen=True)
+class Finding:
+    check: str
+    ok: bool
+    evidence: str
+    values: dict[str, float]
+    fix: str | None = None  # the --fix that corrects it (None: no correction exists)
+
+    def line(self) -> str:
+        fix = f" (--fix {self.fix} corrects it)" if self.fix and not self.ok else ""
+        return f"{'ok' if self.ok else 'WARNING'} {self.check}: {self.evidence}{fix}"
+
+
+def _ref_rate(w: DriveWindows) -> np.ndarray:
+    yaw = w["ref_yaw"]
+    return (yaw[:, -1] - yaw[:, 0]) / (w.dt * (w.n_samples - 1))
+
+
+def _gyro_sign(w: DriveWindows) -> Finding | None:
+    if not (w.has("imu_gz") and w.has("ref_yaw")):
+        return None
+    x, y = _ref_rate(w), np.nanmean(w["imu_gz"], axis=1)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 3 or not np.any(x[ok]):
+        return None
+    x, y = x[ok], y[ok]
+    slope = float(x @ y / (x @ x))
+    r = float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 and np.std(y) > 0 else math.nan
+    values = {"slope": slope, "r": r, "n": float(x.size)}
+    if slope < 0:
+        return Finding("gyro_sign", False, f"imu_gz against the reference yaw rate: slope {slope:.2f}, r {r:.2f} "
+                       f"over {x.size} windows: the gyro sign looks flipped", values, "flip_gyro")
+    if slope < GYRO_MIN_SLOPE or not (abs(r) >= 0.5):
+        return Finding("gyro_sign", False, f"imu_gz hardly follows the reference yaw rate (slope {slope:.2f}, r {r:.2f}): "
+                       "the wrong axis or unit?", values)
+    return Finding("gyro_sign", True, f"imu_gz follows the reference yaw rate (slope {slope:.2f}, r {r:.2f})", values)
+
+
+def _imu_offset(w: DriveWindows) -> Finding | None:
+    if not w.steady.any():
+        return None
+    values: dict[str, float] = {}
+    parts = []
+    for c in ("imu_ax", "imu_ay"):
+        if w.has(c):
+            values[c] = float(np.nanmedian(np.nanmean(w[c][w.steady], axis=1)))
+            parts.append(f"{c} {values[c]:+.2f} m/s^2")
+    if w.has("imu_gz") and w.has("ref_yaw"):
+        # the intercept of the window-mean gyro against the reference yaw rate (a flipped or scaled gyro is the
+        # gyro_sign check's, not a bias)
+        g, r = np.nanmean(w["imu_gz"][w.steady], axis=1), _ref_rate(w)[w.steady]
+        ok = np.isfinite(g) & np.isfinite(r)
+        if ok.sum() >= 3:
+            values["imu_gz"] = float(np.polyfit(r[ok], g[ok], 1)[1])
+            parts.append(f"gyro bias {values['imu_gz']:+.3f} rad/s")
+    if not values:
+        return None
+    bad = [c for c in ("imu_ax", "imu_ay") if abs(values.get(c, 0.0)) > IMU_MAX_OFFSET]
+    bad += ["imu_gz"] if abs(values.get("imu_gz", 0.0)) > GYRO_MAX_BIAS else []
+    where = f"median over {int(w.steady.sum())} steady windows (steady: no acceleration): " + ", ".join(parts)
+    if bad:
+        return Finding("imu_offset", False, f"{where}; offset beyond {IMU_MAX_OFFSET} m/s^2 / {GYRO_MAX_BIAS} rad/s "
+                       f"on {', '.join(bad)}", values, "imu_offset")
+    return Finding("imu_offset", True, where, values)
+
+
+def _update_rate(w: DriveWindows) -> Finding:
+    rate = 1.0 / w.dt
+    values, slow = {}, []
+    for c in sorted(w.channels):
+        if c.startswith("cmd_"):
+            continue  # commands are held for the step by design
+        a = np.asarray(w[c], float)
+        if a.ndim != 2 or a.shape[1] < 2:
+            continue
+        d = np.diff(a, axis=1)
+        moving = np.isfinite(d)
+        # a sample that moves: differs from the one before, or the stream is not at rest (a held non-zero value)
+        at_rest = (a[:, 1:] == 0) & (a[:, :-1] == 0)
+        n = int((moving & ~at_rest).sum())
+        if n == 0:
+            continue
+        eff = rate * float(((d != 0) & moving & ~at_rest).sum()) / n
+        values[c] = eff
+        if eff < MIN_RATE_SHARE * rate:
+            slow.append(f"{c} {eff:.1f} Hz")
+    text = ", ".join(f"{c} {v:.1f} Hz" for c, v in values.items())
+    if slow:
+        return Finding("update_rate", False, f"effective update rates in a {rate:.0f} Hz table: {', '.join(slow)} "
+                       "(held samples: the stream updates slower than the table)", values)
+    return Finding("update_rate", True, f"effective update rates: {text}", values)
+
+
+def _held_samples(a: np.ndarray) -> np.ndarray:
+    """Per window: how many samples before the last one repeat its value (0: the last sample is new)."""
+    same = a[:, :-1] == a[:, -1:]
+    return np.argmin(same[:, ::-1], axis=1) + same.all(axis=1) * same.shape[1]
+
+
+def _stale(w: DriveWindows) -> np.ndarray:
+    """Windows whose reference pose at the last sample has been held longer than the reference's own update interval
+    (a 10 Hz ICP in a 20 Hz table holds every other sample: that is its rate, not a stale pose)."""
+    held = np.minimum(_held_samples(w["ref_x"]), _held_samples(w["ref_y"]))
+    rate = _update_rate(w).values.get("ref_x", 1.0 / w.dt)
+    normal = max(0, int(math.ceil(1.0 / (w.dt * rate) - 1e-9)) - 1)
+    return held > normal
+
+
+def _stale_reference(w: DriveWindows) -> Finding | None:
+    if not (w.has("ref_x") and w.has("ref_y")) or w.n_samples < 2:
+        return None
+    stale = _stale(w)
+    share = float(stale.mean())
+    values = {"share": share, "n": float(stale.sum())}
+    text = (f"{int(stale.sum())} of {w.n_windows} windows ({100 * share:.0f} %) end on a reference pose held longer "
+            "than the reference's update interval")
+    if share > MAX_STALE_SHARE:
+        return Finding("stale_reference", False, text + " (the end-pose score compares a stale pose)", values,
+                       "drop_stale")
+    return Finding("stale_reference", True, text, values)
+
+
+def _step_crossings(w: DriveWindows, share: float) -> list[float]:
+    """Per command step and side: the time from the command's half-way crossing to the wheel speed's crossing of
+    ``share`` of the same step, on each transitory window joined to the window before it (the previous step's end)."""
+    idx = np.flatnonzero(w.transitory[1:] & (w.calib_step[1:] != w.calib_step[:-1])) + 1
+    tail = max(2, w.n_samples // 4)
+    lags = []
+    for i in idx:
+        for cmd, enc in (("cmd_wl", "enc_wl"), ("cmd_wr", "enc_wr")):
+            c = np.concatenate([w[cmd][i - 1], w[cmd][i]])
+            e = np.concatenate([w[enc][i - 1], w[enc][i]])
+            c0, c1 = np.nanmedian(c[:tail]), np.nanmedian(c[-tail:])
+            e0 = np.nanmedian(e[w.n_samples - tail: w.n_samples])
+            step = c1 - c0
+            if not (abs(step) > MIN_STEP and np.isfinite(e0)):
+                continue
+            k_c = np.flatnonzero(np.abs(c - c0) > abs(step) / 2)
+            k_e = np.flatnonzero((e - e0) / step > share)
+            if k_c.size and k_e.size:
+                lags.append((int(k_e[0]) - int(k_c[0])) * w.dt)
+    return lags
+
+
+def _command_lag(w: DriveWindows) -> Finding | None:
+    """T10 and T50 of the wheel speeds after command steps (medians of :func:`_step_crossings`)."""
+    if not all(w.has(c) for c in ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr")):
+        return None
+    t10, t50 = _step_crossings(w, 0.1), _step_crossings(w, 0.5)
+    if not t10:
+        return None
+    values = {"t10_s": float(np.median(t10)), "t50_s": float(np.median(t50)) if t50 else math.nan,
+              "n": float(len(t10))}
+    text = (f"after a command step the wheel speeds reach 10 % of it in {values['t10_s']:.2f} s and 50 % in "
+            f"{values['t50_s']:.2f} s (medians over {len(t10)} steps and sides)")
+    if values["t10_s"] > MAX_LAG or values["t10_s"] < -MAX_LEAD:
+        why = "ahead of their command" if values["t10_s"] < 0 else f"no response within {MAX_LAG} s"
+        return Finding("command_lag", False, f"{text}: {why}, a clock offset between the command and wheel-speed "
+                       "streams?", values)
+    return Finding("command_lag", True, text, values)
+
+
+def check_windows(w: DriveWindows) -> list[Finding]:
+    """Every check that the table's channels allow (see the module docstring)."""
+    found = [_gyro_sign(w), _imu_offset(w), _update_rate(w), _stale_reference(w), _command_lag(w)]
+    return [f for f in found if f is not None]
+
+
+def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix") -> tuple[DriveWindows, list[str]]:
+    """``w`` with the corrections ``fixes`` (names of :data:`FIXES`) applied in that table's order (the offsets are
+    measured after the gyro flip), and a line per correction."""
+    for f in fixes:
+        if f not in FIXES:
+            raise SpecError("<command line>", where, f, f"expected one of {', '.join(FIXES)}")
+    ch: dict[str, Any] = dict(w.channels)
+    done = []
+    if "flip_gyro" in fixes and "imu_gz" in ch:
+        ch["imu_gz"] = -np.asarray(ch["imu_gz"])
+        done.append("flip_gyro: imu_gz multiplied by -1")
+    out = dataclasses.replace(w, channels=ch)
+    offset = _imu_offset(out) if "imu_offset" in fixes else None  # measured after the flip
+    if offset is not None:
+        for c, v in offset.values.items():
+            ch[c] = np.asarray(ch[c]) - v
+            done.append(f"imu_offset: {c} {-v:+.4g}")
+        out = dataclasses.replace(w, channels=ch)
+    if "drop_stale" in fixes and w.has("ref_x"):
+        stale = _stale(out)
+        out = out.subset(~stale)
+        done.append(f"drop_stale: {int(stale.sum())} windows dropped")
+    return out, done

@@ -1,0 +1,207 @@
+"""``skidbench real`` on a robot the code has never seen, from a TOML with its wheel radius and track alone, and the
+data's sanity checks (bench.real.sanity): each fires on a synthetic table with its defect and stays silent on the
+clean table.
+
+The synthetic robot: r = 0.30 m, B = 1.10 m, a symmetric ICR model with chi = 1.6 (Wang 2015 eq. (15): the yaw rate is
+(v_r - v_l) / (chi B)), a first-order powertrain (tau = 0.15 s) following random 6 s command steps, exact SE(2) poses
+at 20 Hz, a gyro reading the yaw rate, an accelerometer reading no acceleration in steady state.  Cut into DRIVE
+windows by tests.test_drive.drive_cut (one transitory and two steady windows per step).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.real.drive import DRIVE_DT, import_drive_windows
+from bench.real.sanity import apply_fixes, check_windows
+from tests.test_drive import N, drive_cut
+
+R, B, CHI, TAU = 0.30, 1.10, 1.6, 0.15
+PER = 120  # samples per 6 s step
+
+
+def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI) -> dict:
+    rng = np.random.default_rng(seed)
+    pre = N + 5
+    n = pre + n_steps * PER + 5
+    label = np.clip((np.arange(n) - pre) // PER, 0, n_steps - 1)
+    cmd = rng.uniform(-4, 4, size=(n_steps, 2))[label]
+    cmd[:pre] = 0.0
+    wheel = np.zeros((n, 2))
+    a = DRIVE_DT / TAU
+    for i in range(1, n):  # first-order powertrain (exact discretisation of a step held over the row)
+        wheel[i] = wheel[i - 1] + (1 - np.exp(-a)) * (cmd[i - 1] - wheel[i - 1])
+    if lag:  # the wheel-speed stream's clock behind the commands': samples arrive `lag` rows late
+        wheel = np.vstack([np.zeros((lag, 2)), wheel[:-lag]])
+    v = R * (wheel[:, 0] + wheel[:, 1]) / 2
+    wz = R * (wheel[:, 1] - wheel[:, 0]) / (chi * B)
+    x, y, yaw = np.zeros(n), np.zeros(n), np.zeros(n)
+    for i in range(n - 1):
+        u, w = v[i] * DRIVE_DT, wz[i] * DRIVE_DT
+        dx, dy = (np.sin(w) * u / w, (1 - np.cos(w)) * u / w) if abs(w) > 1e-12 else (u, 0.0)
+        c, s = np.cos(yaw[i]), np.sin(yaw[i])
+        x[i + 1], y[i + 1], yaw[i + 1] = x[i] + c * dx - s * dy, y[i] + s * dx + c * dy, yaw[i] + w
+    return {"x": x, "y": y, "yaw": yaw, "label": label, "cmd_left": cmd[:, 0], "cmd_right": cmd[:, 1],
+            "left_wheel_vel": wheel[:, 0] + rng.normal(0, 0.02, n),
+            "right_wheel_vel": wheel[:, 1] + rng.normal(0, 0.02, n),
+            "imu_acceleration_x": np.gradient(v, DRIVE_DT) + rng.normal(0, 0.05, n),
+            "imu_acceleration_y": v * wz + rng.normal(0, 0.05, n), "imu_acceleration_z": 9.81 + rng.normal(0, 0.05, n),
+            "imu_yaw": wz + rng.normal(0, 0.005, n), "pre": pre, "n_steps": n_steps}
+
+
+def _table(log: dict) -> pd.DataFrame:
+    starts = []
+    for k in range(log["n_steps"]):
+        t0 = log["pre"] + k * PER - 1
+        starts += [(t0, k, True), (t0 + N, k, False), (t0 + 2 * N, k, False)]
+    return drive_cut(log, starts)
+
+
+def _cols(df: pd.DataFrame, base: str) -> list[str]:
+    return [f"{base}_{k}" for k in range(N)]
+
+
+def defect(df: pd.DataFrame, kind: str) -> pd.DataFrame:
+    df = df.copy()
+    if kind == "gyro_sign":
+        df[_cols(df, "imu_yaw")] *= -1
+    elif kind == "imu_offset":
+        df[_cols(df, "imu_acceleration_x")] -= 1.1
+    elif kind == "update_rate":  # wheel speeds updating at 4 Hz inside the 20 Hz table
+        for b in ("left_wheel_vel", "right_wheel_vel"):
+            a = df[_cols(df, b)].to_numpy()
+            df[_cols(df, b)] = a[:, (np.arange(N) // 5) * 5]
+    elif kind == "stale_reference":  # the reference held over the last 10 samples of 80 % of the windows
+        rows = np.random.default_rng(0).random(len(df)) < 0.8
+        for b in ("icp_x", "icp_y", "icp_yaw"):
+            a = df[_cols(df, b)].to_numpy(copy=True)
+            a[rows, N - 10:] = a[rows, N - 11:N - 10]
+            df[_cols(df, b)] = a
+    return df
+
+
+@pytest.fixture(scope="module")
+def clean(tmp_path_factory) -> tuple[Path, pd.DataFrame]:
+    df = _table(_log())
+    path = tmp_path_factory.mktemp("real") / "robot_x.parquet"
+    df.to_parquet(path)
+    return path, df
+
+
+def _findings(df: pd.DataFrame, tmp_path: Path) -> dict:
+    path = tmp_path / "t.parquet"
+    df.to_parquet(path)
+    return {f.check: f for f in check_windows(import_drive_windows(path))}
+
+
+def test_clean_table_raises_no_warning(clean, tmp_path):
+    found = _findings(clean[1], tmp_path)
+    assert set(found) == {"gyro_sign", "imu_offset", "update_rate", "stale_reference", "command_lag"}
+    assert all(f.ok for f in found.values()), [f.line() for f in found.values() if not f.ok]
+    assert found["gyro_sign"].values["slope"] == pytest.approx(1.0, abs=0.02)
+    # T50 of a first-order lag is tau ln 2 = 0.10 s, counted in whole 0.05 s samples from the command's crossing
+    assert 0.05 <= found["command_lag"].values["t50_s"] <= 0.2
+
+
+@pytest.mark.parametrize("kind", ["gyro_sign", "imu_offset", "update_rate", "stale_reference"])
+def test_each_defect_fires_its_check_alone(clean, tmp_path, kind):
+    found = _findings(defect(clean[1], kind), tmp_path)
+    assert not found[kind].ok, found[kind].line()
+    assert [c for c, f in found.items() if not f.ok] == [kind]
+
+
+def test_check_values_measure_the_defect(clean, tmp_path):
+    assert _findings(defect(clean[1], "gyro_sign"), tmp_path)["gyro_sign"].values["slope"] == pytest.approx(-1.0, abs=0.02)
+    assert _findings(defect(clean[1], "imu_offset"), tmp_path)["imu_offset"].values["imu_ax"] == pytest.approx(-1.1, abs=0.05)
+    rate = _findings(defect(clean[1], "update_rate"), tmp_path)["update_rate"].values
+    # 4 Hz holds of 5 samples: 7 changes over the 39 sample pairs of a 40-sample window, at 20 Hz
+    assert rate["enc_wl"] == pytest.approx(20 * 7 / 39, rel=1e-9) and rate["imu_gz"] > 19
+
+
+def test_a_clock_offset_between_commands_and_wheel_speeds_fires(tmp_path):
+    found = _findings(_table(_log(n_steps=20, lag=30)), tmp_path)  # 1.5 s late
+    assert not found["command_lag"].ok and found["command_lag"].values["t10_s"] > 1.0
+
+
+def test_fixes_correct_what_they_name(clean, tmp_path):
+    path = tmp_path / "bad.parquet"
+    defect(defect(clean[1], "gyro_sign"), "imu_offset").to_parquet(path)
+    w = import_drive_windows(path)
+    fixed, lines = apply_fixes(w, ["flip_gyro", "imu_offset"])
+    found = {f.check: f for f in check_windows(fixed)}
+    assert found["gyro_sign"].ok and found["imu_offset"].ok and len(lines) >= 2
+    assert abs(found["imu_offset"].values["imu_ax"]) < 0.01
+
+
+def test_an_unseen_robot_scores_from_a_radius_and_track_toml(clean, tmp_path, capsys):
+    path, _ = clean
+    toml = tmp_path / "robot.toml"
+    toml.write_text('name = "bigbot"\nwheel_radius_cm = 30\ntrack = 1.1\n')
+    out = tmp_path / "out"
+    assert main(["real", str(path), "--platform", str(toml), "--out", str(out), "--json", str(tmp_path / "r.json"),
+                 "--no-figures"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["robot_x-bigbot.csv", "robot_x-bigbot.md", "robot_x-bigbot_chi.csv"]
+    doc = json.loads((tmp_path / "r.json").read_text())
+    res = doc["data"][str(path)]
+    assert res["wheel_radius"] == 0.3 and res["track"] == 1.1 and res["platform"] == "bigbot"
+    med = {m: v["stats"]["all"]["trans"]["median"] for m, v in res["models"].items()}
+    assert med["icr_sym_chi"] < 0.2 * med["ideal_dd"]  # chi = 1.6: ideal DD over-turns by 60 %
+    assert res["models"]["icr_sym_chi"]["params"]["chi"] == pytest.approx(CHI, rel=0.02)
+    assert res["chi"]["median"] == pytest.approx(CHI, rel=0.02)  # Wang eq. (25) measured on the windows
+    assert "husky" not in capsys.readouterr().out.lower()
+
+
+@pytest.mark.parametrize("toml, field", [('wheel_radius = 0.3\n', "track"), ('track = 1.1\n', "wheel_radius"),
+                                         ('wheel_radius = -1\ntrack = 1\n', "wheel_radius"),
+                                         ('wheel_radius = 0.3\nwheel_radius_cm = 30\ntrack = 1\n', "wheel_radius")])
+def test_a_platform_toml_missing_what_the_models_need_is_one_line(clean, tmp_path, capsys, toml, field):
+    p = tmp_path / "bad.toml"
+    p.write_text(toml)
+    assert main(["real", str(clean[0]), "--platform", str(p), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "bad.toml" in err and field in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_real_needs_an_output_folder_and_a_known_fix(clean, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["real", str(clean[0]), "--platform", "husky"])
+    assert exc.value.code == 2
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(tmp_path / "o"), "--fix", "magic"]) == 2
+    assert "magic" in capsys.readouterr().err
+
+
+def test_bootstrap_interval_over_steps_is_the_percentiles_of_resampled_medians():
+    from bench.real.league import _resample, bootstrap_median
+
+    steps = np.repeat(np.arange(4), 3)
+    same = np.full(12, 0.7)
+    assert bootstrap_median(same, _resample(steps, np.random.default_rng(0), 200)) == (0.7, 0.7, 0.7)
+    e = np.repeat([0.1, 0.2, 0.3, 0.4], 3)  # each step's windows equal: a resample's median is a step value
+    m, lo, hi = bootstrap_median(e, _resample(steps, np.random.default_rng(0), 500))
+    assert m == pytest.approx(0.25) and 0.1 <= lo < m < hi <= 0.4
+
+
+def test_league_says_plainly_where_an_icr_model_does_not_beat_ideal_dd(tmp_path):
+    """A robot whose chi is 1 (no skid: ideal DD is exact): the calibrated ICR models cannot beat it, and the league
+    says so; the chi = 1.6 robot's models beat it."""
+    from bench.real.benchmark import run_real_benchmark
+    from bench.real.league import league_markdown
+
+    out = []
+    for chi in (1.0, CHI):
+        path = tmp_path / f"chi{chi}.parquet"
+        _table(_log(chi=chi)).to_parquet(path)
+        plat = {"name": f"chi{chi}", "wheel_radius": R, "track": B}
+        res = run_real_benchmark(path, tmp_path / "o", platform=plat, figures=False, label=path.stem,
+                                 models=["baseline.ideal_dd", "wang2015.constant_chi"])
+        out.append((path, res, f"{path.stem}.md"))
+    text = league_markdown(out)
+    one, other = text.split("## chi1.6")
+    assert "`icr_sym_chi` does not beat ideal differential drive on this data set" in one
+    assert "does not beat" not in other and "| `icr_sym_chi` |" in other and "beats (" in other
