@@ -205,3 +205,55 @@ def test_league_says_plainly_where_an_icr_model_does_not_beat_ideal_dd(tmp_path)
     one, other = text.split("## chi1.6")
     assert "`icr_sym_chi` does not beat ideal differential drive on this data set" in one
     assert "does not beat" not in other and "| `icr_sym_chi` |" in other and "beats (" in other
+
+
+def _run_of(log: dict, imu_every: int = 1) -> "Run":
+    """The continuous log as a Run: 20 Hz wheels, commands and reference; the gyro every ``imu_every`` rows (NaN
+    between, the Run convention for a slower sensor)."""
+    from bench.run import Run
+
+    n = log["x"].size
+    gz = np.full(n, np.nan)
+    gz[::imu_every] = log["imu_yaw"][::imu_every]
+    data = pd.DataFrame({"t": DRIVE_DT * np.arange(n), "cmd_wl": log["cmd_left"], "cmd_wr": log["cmd_right"],
+                         "enc_wl": log["left_wheel_vel"], "enc_wr": log["right_wheel_vel"], "imu_gz": gz,
+                         "ref_x": log["x"], "ref_y": log["y"], "ref_yaw": (log["yaw"] + np.pi) % (2 * np.pi) - np.pi})
+    return Run(data, {"run_id": "synthetic_robot"})
+
+
+def test_a_continuous_run_is_cut_into_the_windows_of_its_command_steps(tmp_path):
+    from bench.real.run_windows import windows_from_run
+
+    log = _log(n_steps=6)
+    w = windows_from_run(_run_of(log, imu_every=3))
+    # the 45 samples at rest before the first command: a step of one window (the 5 left over dropped); then each
+    # 6 s step (120 samples) holds three whole 2 s windows: T, S, S
+    assert log["pre"] == N + 5 and w.n_windows == 1 + 18 and w.n_samples == N
+    assert w.transitory.tolist() == [True] + [True, False, False] * 6
+    assert w.calib_step.tolist() == [0] + list(np.repeat(range(1, 7), 3))
+    # window k of command step j starts at pre + j * PER + k * N, with its pose at (0, 0, 0)
+    j, k = 4, 2
+    s = log["pre"] + j * PER + k * N
+    i = 1 + 3 * j + k
+    np.testing.assert_array_equal(w["enc_wl"][i], log["left_wheel_vel"][s:s + N])
+    assert (w["ref_x"][i, 0], w["ref_y"][i, 0], w["ref_yaw"][i, 0]) == (0.0, 0.0, 0.0)
+    c, sn = np.cos(log["yaw"][s]), np.sin(log["yaw"][s])
+    dx, dy = log["x"][s + N - 1] - log["x"][s], log["y"][s + N - 1] - log["y"][s]
+    assert w["ref_x"][i, -1] == pytest.approx(c * dx + sn * dy, abs=1e-12)
+    assert w["ref_yaw"][i, -1] == pytest.approx(log["yaw"][s + N - 1] - log["yaw"][s], abs=1e-9)
+    # the gyro every third row: held in between (zero-order hold)
+    np.testing.assert_array_equal(w["imu_gz"][i], log["imu_yaw"][(np.arange(s, s + N) // 3) * 3])
+
+
+def test_real_scores_an_imported_run_like_its_drive_table(tmp_path):
+    log = _log()
+    run_path = tmp_path / "robot_run.parquet"
+    _run_of(log).to_parquet(run_path)
+    toml = tmp_path / "robot.toml"
+    toml.write_text(f"wheel_radius = {R}\ntrack = {B}\n")
+    assert main(["real", str(run_path), "--platform", str(toml), "--out", str(tmp_path / "o"), "--no-figures",
+                 "--json", str(tmp_path / "r.json"), "--methods", "baseline.ideal_dd,wang2015.constant_chi"]) == 0
+    res = json.loads((tmp_path / "r.json").read_text())["data"][str(run_path)]
+    assert res["models"]["icr_sym_chi"]["params"]["chi"] == pytest.approx(CHI, rel=0.02)
+    assert res["chi"]["median"] == pytest.approx(CHI, rel=0.02)
+    assert (tmp_path / "o" / "robot_run-robot.md").is_file()

@@ -44,7 +44,8 @@ def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # se
 
 # ------------------------------------------------------------------------------------------ real
 def _real_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("data", nargs="+", type=Path, help="DRIVE window tables (.parquet, .pkl, .csv)")
+    p.add_argument("data", nargs="+", type=Path, help="DRIVE window tables (.parquet, .pkl, .csv) or continuous runs (.parquet of import-bag / "
+                   "import-csv / simulate), cut into the same windows")
     p.add_argument("--platform", required=True,
                    help="a platform name (skidbench list) or a TOML file with wheel_radius and track [m]")
     p.add_argument("--out", type=Path, required=True, help="output folder (nothing is written anywhere else)")

@@ -2,7 +2,8 @@
 
 Protocol (``run_real_benchmark``):
 
-1. Import the DRIVE table as per-window arrays (:func:`bench.real.drive.import_drive_windows`).  A window
+1. Import the DRIVE table as per-window arrays (:func:`bench.real.drive.import_drive_windows`; a continuous Run from
+   ``import-bag`` / ``import-csv`` is cut into the same windows by :func:`bench.real.run_windows.windows_from_run`).  A window
    is scored if its measured wheel speeds and its ICP start and end poses are finite.
 2. Split the command steps (the repaired step ids of :mod:`bench.real.drive`) into a calibration and a
    test half **by step**: a ``numpy.random.default_rng(seed)`` permutation of the step ids, the
@@ -65,7 +66,8 @@ from bench.real.chi import chi_by_bin, testbed_chi
 from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform
 from bench.real.report import write_report
 from bench.real.sanity import apply_fixes, check_windows
-from bench.run import RunError
+from bench.real.run_windows import is_run_file, windows_from_run
+from bench.run import Run, RunError
 from bench.real.windows import MIN_TURN, WindowModel, end_errors, tread_speeds, valid_windows, window_chi
 
 ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
@@ -165,7 +167,10 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     name = str(plat.get("name") or data_path.stem)
     if name == "unspecified":
         name = data_path.stem
-    allw = import_drive_windows(data_path)
+    if is_run_file(data_path):  # a continuous run (import-bag / import-csv): cut into DRIVE windows
+        allw = windows_from_run(Run.from_parquet(data_path), where=str(data_path))
+    else:
+        allw = import_drive_windows(data_path)
     ok = valid_windows(allw)
     w = allw.subset(ok)
     findings = check_windows(w)
