@@ -257,3 +257,19 @@ def test_real_scores_an_imported_run_like_its_drive_table(tmp_path):
     assert res["models"]["icr_sym_chi"]["params"]["chi"] == pytest.approx(CHI, rel=0.02)
     assert res["chi"]["median"] == pytest.approx(CHI, rel=0.02)
     assert (tmp_path / "o" / "robot_run-robot.md").is_file()
+
+
+def test_import_drive_warns_and_records_the_checks_in_the_runs(clean, tmp_path, capsys):
+    from bench.run import Run
+
+    bad = tmp_path / "flipped.parquet"
+    defect(clean[1], "gyro_sign").to_parquet(bad)
+    assert main(["import-drive", str(bad), "--platform", "husky", "-o", str(tmp_path / "runs")]) == 0
+    out = capsys.readouterr().out
+    assert "warning:" in out and "gyro_sign" in out and "--fix flip_gyro" in out
+    run = Run.from_parquet(sorted((tmp_path / "runs").glob("*.parquet"))[0])
+    assert [f["check"] for f in run.meta["sanity"]["findings"] if not f["ok"]] == ["gyro_sign"]
+    assert main(["import-drive", str(bad), "--platform", "husky", "--fix", "flip_gyro", "-o", str(tmp_path / "r2")]) == 0
+    run2 = Run.from_parquet(sorted((tmp_path / "r2").glob("*.parquet"))[0])
+    assert run2.meta["sanity"]["fixes"] == ["flip_gyro: imu_gz multiplied by -1"]
+    np.testing.assert_array_equal(run2.data["imu_gz"].to_numpy(), -run.data["imu_gz"].to_numpy())

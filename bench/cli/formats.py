@@ -22,12 +22,21 @@ def _drive_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--wheel-radius", type=float, default=None, help="[m], overrides the platform")
     p.add_argument("--track", type=float, default=None, help="[m], overrides the platform")
     p.add_argument("-o", "--output", type=Path, required=True, help="folder for one Parquet run per command step")
+    p.add_argument("--fix", action="append", default=[], metavar="NAME",
+                   help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
 
 
 def _import_drive(a: argparse.Namespace) -> int:
     from bench.real.drive import import_drive
 
-    runs = import_drive(a.table, a.platform, a.wheel_radius, a.track)
+    runs = import_drive(a.table, a.platform, a.wheel_radius, a.track, fixes=a.fix)
+    sanity = runs[0].meta["sanity"] if runs else {"findings": [], "fixes": []}
+    for f in sanity["findings"]:  # recorded in every run's metadata (meta["sanity"])
+        if not f["ok"]:
+            print(f"warning: {a.table}: {f['check']}: {f['evidence']}"
+                  + (f" (--fix {f['fix']} corrects it)" if f["fix"] else ""))
+    for line in sanity["fixes"]:
+        print(f"{a.table}: corrected: {line}")
     for r in runs:
         r.to_parquet(a.output / f"step{r.meta['calib_step']:03d}.parquet")
     print(f"wrote {len(runs)} runs to {a.output}")

@@ -490,14 +490,24 @@ def windows_to_runs(windows: DriveWindows, platform: Mapping[str, Any] | None = 
 
 
 def import_drive(path: str | Path, platform: str | Path | Platform | Mapping[str, Any] | None = None,
-                 wheel_radius: float | None = None, track: float | None = None) -> list[Run]:
+                 wheel_radius: float | None = None, track: float | None = None,
+                 fixes: Sequence[str] = ()) -> list[Run]:
     """Import a DRIVE window table as one :class:`Run` per command step (see module docstring).
 
     ``platform``: a platform name/path (``bench.spec.load_platform``), a Platform or a mapping;
-    ``wheel_radius`` and ``track`` override it (or replace it when ``platform`` is None).
+    ``wheel_radius`` and ``track`` override it (or replace it when ``platform`` is None).  The data's sanity checks
+    (:mod:`bench.real.sanity`, on the windows with finite wheel speeds and reference) go to every Run's
+    ``meta["sanity"]`` (``findings``, and the corrections ``fixes`` applied before the cut into Runs).
     """
+    from bench.real.sanity import apply_fixes, check_windows
+    from bench.real.windows import valid_windows
+
     plat = resolve_platform(platform, wheel_radius, track)
-    return windows_to_runs(import_drive_windows(path), plat)
+    w = import_drive_windows(path)
+    findings = check_windows(w.subset(valid_windows(w)))
+    w, fixed = apply_fixes(w, fixes)
+    sanity = {"findings": [dataclasses.asdict(f) for f in findings], "fixes": fixed}
+    return [Run(r.data, {**r.meta, "sanity": sanity}) for r in windows_to_runs(w, plat)]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
