@@ -273,3 +273,41 @@ def test_import_drive_warns_and_records_the_checks_in_the_runs(clean, tmp_path, 
     run2 = Run.from_parquet(sorted((tmp_path / "r2").glob("*.parquet"))[0])
     assert run2.meta["sanity"]["fixes"] == ["flip_gyro: imu_gz multiplied by -1"]
     np.testing.assert_array_equal(run2.data["imu_gz"].to_numpy(), -run.data["imu_gz"].to_numpy())
+
+
+def _platform_toml(tmp_path: Path, drop: str | None = None) -> Path:
+    """A full testbed platform spec of the synthetic robot: the Husky's file with its name, wheel radius and track
+    changed (and a field dropped)."""
+    from bench.spec import SCENARIO_DIR
+
+    lines, top = [], True
+    for ln in (SCENARIO_DIR / "platforms" / "husky.toml").read_text().splitlines():
+        top = top and not ln.startswith("[")  # the top-level fields, not the [sources] table
+        key = ln.split("=")[0].strip()
+        if top and key == drop:
+            continue
+        new = {"name": 'name = "bigbot"', "wheel_radius": f"wheel_radius = {R}", "track": f"track = {B}"}
+        lines.append(new.get(key, ln) if top else ln)
+    p = tmp_path / "bigbot.toml"
+    p.write_text("\n".join(lines) + "\n")
+    return p
+
+
+def test_real_gap_runs_on_another_robot_from_its_platform_toml(clean, tmp_path, capsys):
+    out = tmp_path / "gap"
+    assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
+                 "--json", str(tmp_path / "g.json"), "--workers", "1"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["robot_x-bigbot_gap.json", "robot_x-bigbot_gap.md",
+                                                      "robot_x-bigbot_gap.png"]
+    doc = json.loads((tmp_path / "g.json").read_text())
+    assert doc["platform"] == "bigbot" and doc["data_file"] == "robot_x.parquet"
+    md = (out / "robot_x-bigbot_gap.md").read_text()
+    assert "husky" not in md.lower() and "robot_x-bigbot_gap.png" in md
+    assert "husky" not in capsys.readouterr().out.lower()
+
+
+def test_real_gap_names_the_field_a_platform_toml_lacks(clean, tmp_path, capsys):
+    bad = _platform_toml(tmp_path, drop="mass")
+    assert main(["real-gap", str(clean[0]), "--platform", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "mass" in err and "bigbot.toml" in err and not (tmp_path / "o").exists()

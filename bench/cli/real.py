@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from bench.cli import command
+from bench.cli import command, count
 
 
 def data_root() -> Path:
@@ -91,3 +91,38 @@ def _real(a: argparse.Namespace) -> int:
 
 command("real", "score the registered plugins on real DRIVE window tables: skidbench real DATA... --platform P "
         "--out DIR")((_real_args, _real))
+
+
+# ------------------------------------------------------------------------------------------ real-gap
+def _gap_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("data", type=Path, help="a DRIVE window table or a continuous run (.parquet of import-bag / "
+                   "import-csv)")
+    p.add_argument("--platform", required=True,
+                   help="the testbed platform: a name (skidbench list) or the path of a full platform TOML (the "
+                        "dynamic model needs mass, inertia, wheels and motors)")
+    p.add_argument("--terrain", default=None, help="nominal terrain (name or TOML; default asphalt)")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--json", type=Path, default=None, help="also copy the JSON document here")
+    p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
+    p.add_argument("--full", action="store_true", help="every held-out step and three fit steps (slow)")
+    p.add_argument("--workers", type=count(1), default=None)
+
+
+def _real_gap(a: argparse.Namespace) -> int:
+    from bench.real.gap import BOUNDED, FULL, nominal_scenario, run_real_gap
+    from bench.report.io import atomic_write_text
+
+    name = nominal_scenario(a.platform, a.terrain).platform.name  # a missing spec field stops here, before any run
+    label = f"{a.data.stem}-{name}"
+    r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=FULL if a.full else BOUNDED,
+                     workers=a.workers, label=label)
+    ho = r["doc"]["held_out"]["cost"]
+    print(f"{r['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> {ho['after_mean']:.4g} "
+          f"-> {a.out / (label + '_gap.md')}")
+    if a.json:
+        atomic_write_text(a.json, Path(r["files"][-2]).read_text())
+    return 0
+
+
+command("real-gap", "the gap workflow of a testbed platform against real data: skidbench real-gap DATA --platform P "
+        "--out DIR")((_gap_args, _real_gap))

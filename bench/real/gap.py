@@ -48,7 +48,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform, windows_to_runs
+from bench.real.drive import DriveWindows, import_drive_windows, windows_to_runs
 from bench.gap import Thresholds, find_gap
 from bench.gap.catalogue import CATALOGUE, Effect
 from bench.real.benchmark import split_steps
@@ -161,25 +161,54 @@ def _clean(x: Any) -> Any:
     return x
 
 
-def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 0, platform: str = "husky",
+def nominal_scenario(platform: str | Path = "husky", terrain: str | Path | None = None,
+                     scenario: str = SCENARIO) -> Any:
+    """The nominal model: ``scenario`` (the replayed-command placeholder) with the testbed platform ``platform`` (a
+    name or the path of a full platform spec: the dynamic model needs its mass, inertia, wheels and motors, and a
+    missing field is a one-line :class:`~bench.spec.SpecError` naming it) and, if given, the terrain ``terrain``."""
+    from bench.spec import load_platform, load_terrain, replace
+
+    scn = load_scenario(scenario)
+    changes: dict[str, Any] = {}
+    if str(platform) != scn.platform.name:
+        changes["platform"] = load_platform(str(platform))
+    if terrain is not None:
+        changes["terrain"] = load_terrain(str(terrain))
+    if not changes:
+        return scn
+    out = replace(scn, **changes)
+    return replace(out, id=f"real_{out.platform.name}_{out.terrain.name}")  # what it now is, not the Husky's name
+
+
+def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 0, platform: str | Path = "husky",
                  scenario: str = SCENARIO, config: GapRunConfig = BOUNDED,
                  catalogue: Sequence[Effect] = CATALOGUE, workers: int | None = None,
-                 figure: bool = True, progress: Any = None) -> dict[str, Any]:
+                 figure: bool = True, progress: Any = None, terrain: str | Path | None = None,
+                 label: str | None = None) -> dict[str, Any]:
     """Run the gap workflow on the real data (module docstring); write the report if ``out_dir``.
 
+    ``data_path``: a DRIVE table or a continuous Run (``import-bag`` / ``import-csv``: cut into windows by
+    :func:`bench.real.run_windows.windows_from_run`).  ``platform`` / ``terrain``: :func:`nominal_scenario`.  Files
+    are ``<label>_gap.md|json|png`` (default label: the platform's name).
     Returns the JSON document (``doc``), the :class:`GapResult` (``result``) and the held-out Runs'
     step ids; ``runtime_s`` (wall time) is returned, never written."""
+    from bench.real.run_windows import is_run_file, windows_from_run
+    from bench.spec import to_dict
+
     t0 = time.perf_counter()
     data_path = Path(data_path)
-    plat = resolve_platform(platform)
-    allw = import_drive_windows(data_path)
+    scn = nominal_scenario(platform, terrain, scenario)
+    plat = to_dict(scn.platform)
+    if is_run_file(data_path):
+        allw = windows_from_run(Run.from_parquet(data_path), where=str(data_path))
+    else:
+        allw = import_drive_windows(data_path)
     w = allw.subset(valid_windows(allw))
     calib_steps, test_steps = split_steps(w, seed)
     block = fit_block(w, calib_steps, config.n_fit)
     order = [int(s) for s in step_order(w)]
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
-    scn = load_scenario(scenario)
     fit_run = block_run(w, block, plat)
     thr = Thresholds(max_effects=config.max_effects)
     res = find_gap(fit_run, scn, workers=workers, thresholds=thr, catalogue=catalogue, progress=progress)
@@ -190,7 +219,8 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     cmd = np.concatenate([np.abs(w["cmd_wl"]).ravel(), np.abs(w["cmd_wr"]).ravel()])
     enc = np.concatenate([np.abs(w["enc_wl"]).ravel(), np.abs(w["enc_wr"]).ravel()])
     doc = {
-        "data_file": data_path.name, "platform": plat.get("name", platform), "scenario": scn.id, "seed": int(seed),
+        "data_file": data_path.name, "platform": plat.get("name", str(platform)), "terrain": scn.terrain.name,
+        "scenario": scn.id, "seed": int(seed),
         "bounds": dataclasses.asdict(config), "bounds_text": config.describe(),
         "fit_steps": block, "held_out_steps": held, "fit_duration_s": float(fit_run.t[-1]),
         "data_facts": {"max_abs_cmd_wheel_speed": float(np.nanmax(cmd)),
@@ -204,11 +234,12 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     if out_dir is not None:
         out_dir = Path(out_dir)
         files = []
+        stem = f"{label or doc['platform']}_gap"
         if figure:
-            files.append(_figure(res, held_out, wheel_series(fit_run, scn, res), out_dir / "husky_gap.png"))
-        files.append(_atomic_write_text(out_dir / "husky_gap.json",
+            files.append(_figure(res, held_out, wheel_series(fit_run, scn, res), out_dir / f"{stem}.png"))
+        files.append(_atomic_write_text(out_dir / f"{stem}.json",
                                         dumps_json(_clean(doc), indent=1, sort_keys=True) + "\n"))
-        files.append(_atomic_write_text(out_dir / "husky_gap.md", _markdown(doc, figure)))
+        files.append(_atomic_write_text(out_dir / f"{stem}.md", _markdown(doc, figure, stem)))
         out["files"] = [str(p) for p in files]
     out["runtime_s"] = time.perf_counter() - t0
     return out
