@@ -296,3 +296,10 @@ def test_bad_input_names_run_and_channel(sim):
     empty = type(measured)(measured.data.assign(cmd_wr=np.nan), dict(measured.meta, run_id="nan-run"))
     with pytest.raises(RunError, match="nan-run.*cmd_wr|cmd_wr.*nan-run"):
         find_gap(empty, SCN, workers=1)
+
+
+def test_change_of_a_zero_gap_is_zero_not_nan():
+    from bench.gap.report import change_text
+
+    assert change_text(0.0, 0.0) == "+0%" and change_text(0.0, 0.1) == "new"
+    assert change_text(2.0, 1.0) == "-50%" and change_text(float("nan"), 1.0) == "n/a"

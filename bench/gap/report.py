@@ -25,6 +25,16 @@ STDERR_NOTE = ("Std. error (bench.gap.fit): the larger of the classical one (Jac
                "step dt/sqrt(12) in quadrature. The two fold estimates are beside it.")
 
 
+def change_text(before: float, after: float) -> str:
+    """The relative change of an RMS gap: "+0%" when both are zero (no gap before or after: nothing changed), "new"
+    when a zero gap became non-zero, "n/a" when either is not a number."""
+    if not (math.isfinite(before) and math.isfinite(after)):
+        return "n/a"
+    if before == 0:
+        return "+0%" if after == 0 else "new"
+    return f"{100.0 * (after / before - 1.0):+.0f}%"
+
+
 def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
     """The std. error cell: "not identified" when the data do not determine the parameter (infinite
     standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
@@ -92,9 +102,8 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
     L.append("|---|---|---|---|---|---|---|---|")
     for ch, b in res.gap_before.items():
         a = res.gap_after[ch]
-        change = 100.0 * (a["rms"] / b["rms"] - 1.0) if b["rms"] > 0 else float("nan")
         L.append(f"| {ch} | {b['unit']} | {_f(b['rms'])} | {_f(a['rms'])} | {_f(b['percent'], 3)}% | "
-                 f"{_f(a['percent'], 3)}% | {change:+.0f}% | {_f(b['noise'], 2)} |")
+                 f"{_f(a['percent'], 3)}% | {change_text(b['rms'], a['rms'])} | {_f(b['noise'], 2)} |")
     L.append("")
     if res.channels_missing:
         L.append(f"Channels not compared (absent in the measured run or the model): {', '.join(res.channels_missing)}.")
