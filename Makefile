@@ -35,8 +35,12 @@ reproduce-quick: $(STAMP)
 reproduce-extended: $(STAMP)
 	$(BIN)/skidbench reproduce --all --extended $(if $(WORKERS),--workers $(WORKERS),)
 
+# the speed benchmarks (tests/bench, pytest-benchmark); each run appends one line (commit, date, CPU, per benchmark
+# mean/stddev/rounds) to results/bench_history.jsonl, charted on the dashboard's speed page
 bench: $(STAMP)
+	@mkdir -p .benchmarks
 	$(BIN)/python -m pytest tests/bench -q --benchmark-only --benchmark-json=.benchmarks/latest.json
+	$(BIN)/python -m bench.report.bench_history .benchmarks/latest.json
 
 dashboard: $(STAMP)
 	$(BIN)/skidbench dashboard

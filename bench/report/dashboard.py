@@ -2,32 +2,37 @@
 
     render_dashboard(results_dir, out_dir) -> DashboardPages
 
-writes ``out_dir/index.html`` (papers, the run history with commit ids and dates, links),
-``out_dir/<paper>.html`` (one chart per metric over the reproduce runs: full and quick runs as two
-series, the published value as a dashed horizontal line, the regression band of the baseline
-``metrics.json`` as a shaded band, and a table of the changes beyond tolerance between consecutive
-runs) and ``out_dir/speed.html`` (reproduce wall time and every pytest-benchmark mean recorded by
-``make bench`` over the runs).
+writes into ``out_dir``:
+
+* ``index.html``: the papers, the changes beyond tolerance grouped by commit pair across papers (one row
+  per pair: metrics moved per paper), the run history with commit ids and dates, links;
+* ``<paper>.html``: the paper's tables (metrics, charts, pages), its changes beyond tolerance grouped by
+  commit pair (one row per pair: metrics moved, per table counts, a collapsible list of the metrics with
+  links to their charts; :mod:`bench.report.changes`) and its runs;
+* ``<paper>.<table>.html`` (``<paper>.<table>.<k>.html`` for the k-th part of a large table): one chart
+  per metric over the reproduce runs (full and quick runs as two series, the published value as a dashed
+  line, the regression band of the baseline ``metrics.json`` as a shaded band, steps beyond tolerance
+  ringed).  A table of more than :data:`FULL_TABLE` metrics charts only those that moved beyond tolerance
+  at least once (a metric that merely vanished from later runs has not moved); the others are compact rows
+  with a sparkline whose tooltip lists every run's value.  A table's charts and rows are split into parts of
+  at most ``page_budget`` bytes, so that every page stays under 2 MB;
+* ``metrics.html``: every metric id with a link to its chart, and a filter box (:mod:`bench.report.metric_index`);
+* ``speed.html``: ``make bench`` over commits from ``results/bench_history.jsonl`` and the reproduce wall
+  time and stage seconds, cold and warm (:mod:`bench.report.speed_page`).
 
 Why hand-written pages and not asv's site (DESIGN.md names asv): asv's published site loads its data
 with ``fetch()`` from JSON files, which browsers refuse on ``file://``, so it needs an HTTP server to
 be looked at or tested; and its history is per commit of asv runs, while ours already exists in
 ``history.jsonl`` (written by every ``skidbench reproduce``).  These pages are one file each, with
-inline SVG (no JavaScript needed to see them, no network, no CDN), so they open from disk, from a CI
-artefact or from the committed ``results/`` folder.  asv remains available for those who want it:
-``asv.conf.json`` + ``benchmarks/`` (``track_*`` over ``results/metrics.json``, ``time_*`` speed) run
-with ``asv run --environment existing``.
+inline SVG (:mod:`bench.report.chart`; no JavaScript needed to see them, no network, no CDN), so they open
+from disk, from a CI artefact or from the committed ``results/`` folder.  asv remains available:
+``skidbench dashboard --asv`` (quick ``track_*`` benchmarks) or ``asv run`` (:mod:`bench.cli.dashboard`).
 
-The SVG is written by :mod:`bench.report.chart` (no plotting call per chart: a page has hundreds of
-charts and matplotlib takes ~0.15 s each); tick positions come from :class:`matplotlib.ticker.MaxNLocator`.
-Each chart is an ``<svg class="chart">`` with ``data-points`` (finite points drawn); a short inline script checks
-in the browser that every chart's data series has a non-empty laid-out box and as many markers as
-declared, marks each chart ``data-rendered="ok"|"empty"`` and writes the totals into
-``#render-status`` (read by the headless-Chromium test).  Steps between consecutive runs of the same
-mode use :func:`bench.cli.reproduce.compare_metrics`, the same rule as ``skidbench compare``.
-
-Output is a pure function of the input files (no clock, sorted keys): rendering twice gives the same
-bytes.  Every file is written atomically.
+Every page carries the in-browser check of :mod:`bench.report.html_page` (charts laid out, no overlapping
+axis labels), read by the headless-Chromium tests.  Steps between consecutive runs of the same mode use
+:func:`bench.cli.reproduce.compare_metrics`, the same rule as ``skidbench compare``.  Output is a pure
+function of the input files (no clock, sorted keys): rendering twice gives the same bytes.  Every file is
+written atomically.
 """
 from __future__ import annotations
 
@@ -35,16 +40,23 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
-from bench.report.chart import COLORS, Series, _chart_for, _chart_id, _esc, _fmt, _time_unit, svg_chart
+from bench.report.bench_history import load_bench_history
+from bench.report.changes import (DEFAULT_TOLERANCE, Step, find_steps, group_steps, pairs_table, summary_table,
+                                  table_key)
+from bench.report.chart import Series, axis_label, esc, fmt, runs_chart, series_by_mode, sparkline, svg_chart
+from bench.report.html_page import html_page, legend, nav_bar
 from bench.report.io import atomic_write_text, json_number
+from bench.report.metric_index import MetricLocation, metric_index_page
+from bench.report.speed_page import speed_page
 from bench.spec import SpecError
 
 __all__ = ["Entry", "Series", "Step", "DashboardPages", "load_history", "load_baselines", "find_steps",
-           "svg_chart", "render_dashboard", "DEFAULT_TOLERANCE"]
+           "svg_chart", "render_dashboard", "DEFAULT_TOLERANCE", "FULL_TABLE", "PAGE_BUDGET"]
 
-DEFAULT_TOLERANCE: Mapping[str, float] = {"rel": 0.05, "abs": 1e-6}  # bench.reproduce's default
+FULL_TABLE = 40            # a table of at most this many metrics charts every metric
+PAGE_BUDGET = 1_300_000    # bytes of charts and rows per table page (with its frame a page stays < 2 MB)
 
 
 # ------------------------------------------------------------------------------------------ inputs
@@ -60,13 +72,12 @@ class Entry:
     metrics: Mapping[str, float]
     bench: Mapping[str, float]
     stages: Mapping[str, float] = field(default_factory=dict)  # seconds per stage (bench.reproduce.timing)
-    cold: bool = False  # the run computed everything (empty run cache, nothing from the result cache)
+    cold: bool | None = None  # the run computed everything (empty run cache, nothing from the result cache); None: not recorded
 
     @property
     def short(self) -> str:
-        """Short commit id (8 hex digits, ``+`` when the tree was dirty)."""
-        base, _, dirty = self.commit.partition("+")
-        return base[:8] + ("+" if dirty else "")
+        """Short commit id (7 hex digits, ``+`` when the tree was dirty)."""
+        return axis_label(self.commit, self.date)[0]
 
     @property
     def day(self) -> str:
@@ -118,9 +129,10 @@ def load_history(path: str | Path) -> list[Entry]:
                    if v is not None}
         bench = {str(k): v for k, v in ((k, _num(v)) for k, v in (obj.get("bench") or {}).items()) if v is not None}
         stages = {str(k): v for k, v in ((k, _num(v)) for k, v in (obj.get("stages") or {}).items()) if v is not None}
+        cold = obj.get("cold")
         entries.append(Entry(index=len(entries), commit=str(obj["commit"]), date=str(obj.get("date", "")),
                              quick=bool(obj.get("quick", False)), seconds=_num(obj.get("seconds")),
-                             metrics=metrics, bench=bench, stages=stages, cold=bool(obj.get("cold", False))))
+                             metrics=metrics, bench=bench, stages=stages, cold=None if cold is None else bool(cold)))
     return entries
 
 
@@ -152,105 +164,240 @@ def _allowed(value: float, tol: Mapping[str, Any]) -> float:
     return max(float(tol.get("abs", 0.0)), float(tol.get("rel", 0.0)) * abs(value))
 
 
-# ------------------------------------------------------------------------------------------ steps
+# ------------------------------------------------------------------------------------------ layout
+def _safe_name(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in name) or "_"
+
+
+def _unique(keys: Sequence[str], make: Callable[[str], str]) -> dict[str, str]:
+    """key -> make(key), with ``-2``, ``-3``... where two keys would give the same name (sorted order)."""
+    out: dict[str, str] = {}
+    used: set[str] = set()
+    for k in sorted(keys):
+        base = name = make(k)
+        i = 1
+        while name in used:
+            i += 1
+            name = f"{base}-{i}"
+        used.add(name)
+        out[k] = name
+    return out
+
+
 @dataclass(frozen=True)
-class Step:
-    """A metric that moved beyond its tolerance between two consecutive runs of the same mode."""
+class _Context:
+    entries: Sequence[Entry]
+    baselines: Mapping[str, Mapping[str, Any]]
+    step_at: Mapping[tuple[str, int], Step]
+    moved: Mapping[str, int]          # metric -> steps beyond tolerance in its history
+    valued: frozenset[str]            # metrics whose value moved at least once (not only vanished)
+    anchor: Mapping[str, str]         # metric -> element id
+    papers: Sequence[str]
+    table_stem: Mapping[str, str]     # paper.table -> file stem
+    budget: int
+    info: Mapping[str, Mapping[str, Any]]
 
+    def nav(self, here: str, extra: Sequence[tuple[str, str]] = ()) -> str:
+        links = [("index.html", "index"), ("metrics.html", "find a metric"), ("speed.html", "speed"),
+                 *((_safe_name(p) + ".html", p) for p in self.papers)]
+        return nav_bar(links, here) + (" | " + nav_bar(extra, here) if extra else "")
+
+
+@dataclass(frozen=True)
+class _Item:
     metric: str
-    mode: str
-    before: Entry
-    after: Entry
-    old: float
-    new: float | None
-    why: str
+    kind: str  # chart | row | none
+    html: str
 
 
-def find_steps(entries: Sequence[Entry], metric_ids: Sequence[str],
-               baselines: Mapping[str, Mapping[str, Any]]) -> list[Step]:
-    """Changes beyond tolerance between consecutive runs (same mode) that both ran the metric's paper.
+def _band(base: Mapping[str, Any]) -> tuple[float, float] | None:
+    if base.get("value") is not None and math.isfinite(base["value"]):
+        a = _allowed(base["value"], base.get("tolerance", DEFAULT_TOLERANCE))
+        return base["value"] - a, base["value"] + a
+    return None
 
-    The rule is :func:`bench.cli.reproduce.compare_metrics` (the one ``skidbench compare`` applies), with
-    each metric's tolerance from the baseline metrics.json (else bench.reproduce's default)."""
-    from bench.cli.reproduce import compare_metrics
 
-    steps: list[Step] = []
-    by_paper: dict[str, list[str]] = {}
-    for mid in metric_ids:
-        by_paper.setdefault(mid.split(".", 1)[0], []).append(mid)
-    for mids in by_paper.values():
-        for quick in (False, True):
-            runs = [e for e in entries if e.quick == quick and any(m in e.metrics for m in mids)]
-            for a, b in zip(runs, runs[1:]):
-                base = {"metrics": {m: {"value": a.metrics[m],
-                                        "tolerance": baselines.get(m, {}).get("tolerance", DEFAULT_TOLERANCE)}
-                                    for m in mids if m in a.metrics}}
-                new = {"metrics": {m: {"value": b.metrics[m]} for m in mids if m in b.metrics}}
-                for mv in compare_metrics(base, new):
-                    steps.append(Step(mv["metric"], "quick" if quick else "full", a, b, mv["base"], mv["new"], mv["why"]))
-    return sorted(steps, key=lambda s: (s.metric, s.after.index, s.mode))
+def _chart_item(mid: str, ctx: _Context, prefix: str) -> str:
+    base = ctx.baselines.get(mid, {})
+    pub = base.get("published")
+    svg, _ = runs_chart(ctx.anchor[mid], mid, ctx.entries, lambda e: e.metrics.get(mid), series_by_mode,
+                        order=("full", "quick"), published=pub, band=_band(base),
+                        marked=lambda e: (mid, e.index) in ctx.step_at)
+    recs = [(e, e.metrics[mid]) for e in ctx.entries if mid in e.metrics]
+    latest = ", ".join(f"{mode} {fmt(v)}" for mode in ("full", "quick")
+                       if (v := _latest_by_mode(recs, mode)) is not None)
+    moved = f" · moved {ctx.moved[mid]}×" if ctx.moved.get(mid) else ""
+    return (f'<figure><figcaption><b>{esc(mid[len(prefix):])}</b> <span class="v">latest {esc(latest)}'
+            f'{"" if pub is None else " · published " + esc(fmt(pub))}{moved}</span></figcaption>{svg}</figure>')
+
+
+def _latest_by_mode(recs: Sequence[tuple[Entry, float]], mode: str) -> float | None:
+    return next((v for e, v in reversed(recs) if e.mode == mode), None)
+
+
+def _row_item(mid: str, ctx: _Context, prefix: str) -> str:
+    recs = [(e, e.metrics[mid]) for e in ctx.entries if mid in e.metrics]
+    pub = ctx.baselines.get(mid, {}).get("published")
+    lines = [f"{mid}, every run (commit day mode: value):"] + _runs_text(recs)
+    spark = sparkline("s" + ctx.anchor[mid][1:], mid, [(k, v, e.mode) for k, (e, v) in enumerate(recs)], len(recs),
+                      "\n".join(lines))
+    first, last = recs[0][0], recs[-1][0]
+    gone = "" if last.index == ctx.entries[-1].index else " (not in later runs)"
+    cells = [f'<td class="num">{"" if v is None else esc(fmt(v))}</td>'
+             for v in (_latest_by_mode(recs, mode) for mode in ("full", "quick"))]
+    mode = "full" if any(e.mode == "full" for e, _ in recs) else "quick"
+    main = [v for e, v in recs if e.mode == mode and math.isfinite(v)]
+    rng = f"{esc(fmt(min(main)))} … {esc(fmt(max(main)))}" if main else ""  # of the full runs (else the quick)
+    return (f'<tr class="stable" id="{esc(ctx.anchor[mid])}" data-metric="{esc(mid)}" data-runs="{len(recs)}">'
+            f"<td><code>{esc(mid[len(prefix):])}</code></td>{''.join(cells)}"
+            f'<td class="num">{"" if pub is None else esc(fmt(pub))}</td><td class="num c">{rng}</td>'
+            f'<td class="num">{len(recs)}</td><td class="c"><code>{esc(first.short)}</code> {esc(first.day[5:])} … '
+            f"<code>{esc(last.short)}</code> {esc(last.day[5:])}{gone}</td><td>{spark}</td></tr>")
+
+
+def _runs_text(recs: Sequence[tuple[Entry, float]]) -> list[str]:
+    """One line per stretch of consecutive runs of one mode with the same value (6 digits): the first and
+    the last run's commit and day, the mode, the value and the number of runs; in order of first run."""
+    groups: list[list[Any]] = []  # [first, last, mode, text, count]
+    last_of: dict[str, list[Any]] = {}
+    for e, v in recs:
+        text = f"{v:.6g}"
+        g = last_of.get(e.mode)
+        if g is not None and g[3] == text:
+            g[1], g[4] = e, g[4] + 1
+            continue
+        g = [e, e, e.mode, text, 1]
+        groups.append(g)
+        last_of[e.mode] = g
+    out = []
+    for first, last, mode, text, count in groups:
+        span = " ".join(axis_label(first.commit, first.date))
+        if count > 1:
+            span += " … " + " ".join(axis_label(last.commit, last.date)) + f" ({count} runs)"
+        out.append(f"{span} {mode}: {text}")
+    return out
+
+
+def _pack(items: Sequence[_Item], budget: int) -> list[list[_Item]]:
+    """Consecutive items into parts of at most ``budget`` bytes (an oversized item is a part of its own)."""
+    parts: list[list[_Item]] = [[]]
+    size = 0
+    for it in items:
+        n = len(it.html.encode())
+        if parts[-1] and size + n > budget:
+            parts.append([])
+            size = 0
+        parts[-1].append(it)
+        size += n
+    return parts
+
+
+def _part_name(stem: str, k: int) -> str:
+    return f"{stem}.html" if k == 1 else f"{stem}.{k}.html"
+
+
+@dataclass(frozen=True)
+class _TablePlan:
+    """One table's pages: the items of each part (charts, then compact rows, then metrics without a value)."""
+
+    paper: str
+    table: str
+    metrics: tuple[str, ...]
+    full: bool
+    parts: tuple[tuple[_Item, ...], ...]
+    names: tuple[str, ...]
+
+    def locations(self, ctx: _Context) -> list[MetricLocation]:
+        return [MetricLocation(it.metric, self.table, name, ctx.anchor[it.metric], it.kind,
+                               next((e.metrics[it.metric] for e in reversed(ctx.entries) if it.metric in e.metrics),
+                                    None), ctx.moved.get(it.metric, 0))
+                for name, part in zip(self.names, self.parts) for it in part]
+
+
+def _plan_table(paper: str, tkey: str, mids: Sequence[str], ctx: _Context) -> _TablePlan:
+    prefix = tkey + "."
+    full = len(mids) <= FULL_TABLE
+    finite = {m for m in mids if any(m in e.metrics and math.isfinite(e.metrics[m]) for e in ctx.entries)}
+    charts = [m for m in mids if m in finite and (full or m in ctx.valued)]
+    rows = [] if full else [m for m in mids if m in finite and m not in ctx.valued]
+    items = ([_Item(m, "chart", _chart_item(m, ctx, prefix)) for m in charts]
+             + [_Item(m, "row", _row_item(m, ctx, prefix)) for m in rows]
+             + [_Item(m, "none", f'<li id="{esc(ctx.anchor[m])}"><code>{esc(m)}</code></li>')
+                for m in mids if m not in finite])
+    parts = _pack(items, ctx.budget)
+    names = tuple(_part_name(ctx.table_stem[tkey], k) for k in range(1, len(parts) + 1))
+    return _TablePlan(paper, tkey, tuple(mids), full, tuple(tuple(p) for p in parts), names)
+
+
+def _table_pages(plan: _TablePlan, ctx: _Context, steps: Sequence[Step], href: Callable[[str], str],
+                 table_href: Callable[[str], str]) -> list[tuple[str, str, int, int, list[str]]]:
+    """The pages of one table: (file name, html, charts, compact rows, metrics without a value)."""
+    paper, tkey, parts, names = plan.paper, plan.table, plan.parts, plan.names
+    kinds = [it.kind for part in parts for it in part]
+    nchart, nrow, nnone = kinds.count("chart"), kinds.count("row"), kinds.count("none")
+    out = []
+    for k, part in enumerate(parts, start=1):
+        name = names[k - 1]
+        extra = [(_safe_name(paper) + ".html", f"{paper} (overview)")]
+        if len(parts) > 1:
+            extra += [(n, f"part {i}") for i, n in enumerate(names, start=1)]
+        title = f"{paper} · {tkey[len(paper) + 1:] or tkey}" + (f" (part {k} of {len(parts)})" if len(parts) > 1 else "")
+        body = [f"<p>{len(plan.metrics)} metrics in <code>{esc(tkey)}</code>: {nchart} charts"
+                + ("" if plan.full else " (the metrics that moved beyond tolerance at least once)")
+                + (f", {nrow} compact rows (never moved beyond tolerance; hover a sparkline for every run's value)"
+                   if nrow else "")
+                + (f", {nnone} without a finite value" if nnone else "")
+                + (f". This is part {k} of {len(parts)}: <code>{esc(part[0].metric)}</code> … "
+                   f"<code>{esc(part[-1].metric)}</code>" if len(parts) > 1 else "")
+                + f'. Runs and citation: <a href="{_safe_name(paper)}.html">{esc(paper)}</a>; '
+                  'every metric: <a href="metrics.html">find a metric</a>.</p>']
+        figs = [it.html for it in part if it.kind == "chart"]
+        trs = [it.html for it in part if it.kind == "row"]
+        none = [it for it in part if it.kind == "none"]
+        if figs:
+            body += [legend(), '<div class="charts">' + "".join(figs) + "</div>"]
+        if trs:
+            body += ["<h2>Never moved beyond tolerance</h2>",
+                     '<table class="stable"><tr><th>metric</th><th>latest full run</th><th>latest quick run</th>'
+                     "<th>published</th><th>min … max (full runs)</th><th>runs</th><th>first … last run</th>"
+                     "<th>history (full blue, quick orange)</th></tr>",
+                     *trs, "</table>"]
+        if none:
+            body.append("<h2>Not charted (no finite value in any run)</h2><ul>" + "".join(it.html for it in none)
+                        + "</ul>")
+        on_page = {it.metric for it in part}
+        body.append("<h2>Changes beyond tolerance between consecutive runs</h2>")
+        body += pairs_table(group_steps([s for s in steps if s.metric in on_page]), href, table_href)
+        out.append((name, html_page(title, body, ctx.nav(name, extra)), len(figs), len(trs),
+                    [it.metric for it in none]))
+    return out
 
 
 # ------------------------------------------------------------------------------------------ pages
-CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;margin:1.2em 2em;color:#222;max-width:1500px}
-h1{font-size:1.5em} h2{font-size:1.2em;margin-top:1.6em;border-bottom:1px solid #ddd} h3{font-size:1.05em}
-table{border-collapse:collapse;font-size:.88em;margin:.6em 0} td,th{border:1px solid #ccc;padding:2px 7px;text-align:left}
-th{background:#f2f2f2} td.num{text-align:right;font-variant-numeric:tabular-nums} code{font-size:.95em}
-.charts{display:grid;grid-template-columns:repeat(auto-fill,minmax(450px,1fr));gap:10px 14px}
-figure{margin:0;border:1px solid #e3e3e3;padding:4px 6px} figcaption{font-size:.82em;margin-bottom:2px}
-figcaption .v{color:#555}
-svg.chart{display:block;width:100%;height:auto;font-size:10px}
-svg .frame{fill:#fff;stroke:#999;stroke-width:1} svg .grid{stroke:#eee;stroke-width:1}
-svg .ytick{text-anchor:end;fill:#444} svg .unit{text-anchor:middle;fill:#444} svg .xtick{text-anchor:middle;fill:#444;font-size:9px}
-svg .band{fill:#3a9d3a;fill-opacity:.13;stroke:none}
-svg .published{stroke:#000;stroke-width:1.4;stroke-dasharray:6 4}
-svg .publabel{text-anchor:end;font-size:9px;fill:#000}
-svg .line{fill:none;stroke-width:1.6} svg .pt{stroke:none} svg .pt.step{stroke:#d00;stroke-width:2.2;fill:#fff}
-.legend span{margin-right:1.2em;font-size:.85em} .sw{display:inline-block;width:18px;height:3px;vertical-align:middle;margin-right:4px}
-.bad{color:#b00;font-weight:bold} .ok{color:#070} nav a{margin-right:1em}
-"""
+@dataclass(frozen=True)
+class DashboardPages:
+    """What was written: per page the charts and compact rows on it and the metrics not charted; the steps
+    beyond tolerance; where each metric is."""
 
-CHECK_JS = """
-(function(){
-  var charts=document.querySelectorAll('svg.chart'), ok=0, bad=[];
-  charts.forEach(function(svg){
-    var r=svg.getBoundingClientRect(), g=svg.querySelectorAll('g.series'), pts=svg.querySelectorAll('g.series circle.pt');
-    var good=r.width>0&&r.height>0&&g.length>0&&pts.length>0&&pts.length==+svg.getAttribute('data-points');
-    g.forEach(function(s){var b=s.getBoundingClientRect();
-      if(!(b.width>0&&b.height>0&&b.left>=r.left-1&&b.right<=r.right+1&&b.top>=r.top-1&&b.bottom<=r.bottom+1)) good=false;});
-    if(svg.getAttribute('data-published')!==''){var p=svg.querySelector('line.published');
-      if(!p||!(p.getBoundingClientRect().width>0)) good=false;}
-    svg.setAttribute('data-rendered', good?'ok':'empty');
-    if(good) ok++; else bad.push(svg.id);
-  });
-  var s=document.getElementById('render-status');
-  if(s){s.setAttribute('data-charts',charts.length);s.setAttribute('data-ok',ok);
-    s.className=bad.length?'bad':'ok';
-    s.textContent=ok+' of '+charts.length+' charts rendered'+(bad.length?'; empty: '+bad.join(', '):'');}
-})();
-"""
+    out_dir: Path
+    charts: dict[str, int] = field(default_factory=dict)
+    rows: dict[str, int] = field(default_factory=dict)
+    not_charted: dict[str, list[str]] = field(default_factory=dict)
+    steps: list[Step] = field(default_factory=list)
+    locations: dict[str, MetricLocation] = field(default_factory=dict)
 
 
-def _page(title: str, body: list[str], nav: str) -> str:
-    return "\n".join([
-        "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{_esc(title)}</title><style>{CSS}</style></head><body>",
-        f"<nav>{nav}</nav>", f"<h1>{_esc(title)}</h1>", *body,
-        '<p id="render-status" data-charts="" data-ok="">charts not checked (JavaScript off)</p>',
-        f"<script>{CHECK_JS}</script>", "</body></html>", ""])
-
-
-def _legend(published: bool = True) -> str:
-    items = [f'<span><i class="sw" style="background:{COLORS["full"]}"></i>full run</span>',
-             f'<span><i class="sw" style="background:{COLORS["quick"]}"></i>quick run (--quick)</span>']
-    if published:
-        items += ['<span><i class="sw" style="background:#000"></i>published value (dashed)</span>',
-                  '<span><i class="sw" style="background:#3a9d3a;opacity:.35;height:9px"></i>regression band of metrics.json</span>',
-                  '<span><i class="sw" style="background:#fff;border:2px solid #d00;width:6px;height:6px;border-radius:50%"></i>'
-                  'moved beyond tolerance since the previous run</span>']
-    return f'<p class="legend">{"".join(items)}</p>'
+def _history_table(entries: Sequence[Entry]) -> list[str]:
+    rows = ["<table><tr><th>#</th><th>commit</th><th>date (UTC)</th><th>mode</th><th>cache</th><th>wall time (s)</th>"
+            "<th>metrics</th></tr>"]
+    for e in reversed(entries):
+        cache = "" if e.cold is None else ("cold" if e.cold else "warm")
+        rows.append(f'<tr><td class="num">{e.index}</td><td><code title="{esc(e.commit)}">{esc(e.commit)}</code></td>'
+                    f"<td>{esc(e.date)}</td><td>{e.mode}</td><td>{cache}</td>"
+                    f'<td class="num">{"" if e.seconds is None else f"{e.seconds:.1f}"}</td>'
+                    f'<td class="num">{len(e.metrics)}</td></tr>')
+    rows.append("</table>")
+    return rows
 
 
 def _paper_info(paper: str) -> dict[str, Any]:
@@ -263,178 +410,88 @@ def _paper_info(paper: str) -> dict[str, Any]:
         return {}
 
 
-def _safe_name(paper: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_" else "_" for c in paper) or "paper"
-
-
-def _nav(papers: Sequence[str]) -> str:
-    return " ".join(['<a href="index.html">index</a>', *(f'<a href="{_safe_name(p)}.html">{_esc(p)}</a>' for p in papers),
-                     '<a href="speed.html">speed</a>'])
-
-
-@dataclass
-class DashboardPages:
-    """What was written: page path -> number of charts on it (and per page the metrics not charted)."""
-
-    out_dir: Path
-    charts: dict[str, int] = field(default_factory=dict)
-    not_charted: dict[str, list[str]] = field(default_factory=dict)
-    steps: list[Step] = field(default_factory=list)
-
-
-def _history_table(entries: Sequence[Entry]) -> list[str]:
-    rows = ["<table><tr><th>#</th><th>commit</th><th>date (UTC)</th><th>mode</th><th>wall time (s)</th>"
-            "<th>metrics</th><th>speed benchmarks</th></tr>"]
-    for e in reversed(entries):
-        rows.append(f'<tr><td class="num">{e.index}</td><td><code title="{_esc(e.commit)}">{_esc(e.commit)}</code></td>'
-                    f"<td>{_esc(e.date)}</td><td>{e.mode}</td>"
-                    f'<td class="num">{"" if e.seconds is None else f"{e.seconds:.1f}"}</td>'
-                    f'<td class="num">{len(e.metrics)}</td><td class="num">{len(e.bench)}</td></tr>')
-    rows.append("</table>")
-    return rows
-
-
-def _paper_page(paper: str, mids: list[str], entries: Sequence[Entry], baselines: Mapping[str, Mapping[str, Any]],
-                steps: list[Step], papers: Sequence[str]) -> tuple[str, int, list[str]]:
-    info = _paper_info(paper)
-    step_at = {(s.metric, s.after.index): s for s in steps}
-    body = []
-    if info.get("citation"):
-        body.append(f"<p><em>{_esc(info['citation'])}</em></p>")
-    runs = [e for e in entries if any(m in e.metrics for m in mids)]
+def _paper_page(paper: str, mids: Sequence[str], ctx: _Context, steps: Sequence[Step], res: DashboardPages,
+                href: Callable[[str], str], table_href: Callable[[str], str],
+                table_pages: Mapping[str, list[str]]) -> str:
+    info = ctx.info[paper]
+    runs = [e for e in ctx.entries if any(m in e.metrics for m in mids)]
     last = runs[-1]
-    body.append(f"<p>{len(mids)} metrics over {len(runs)} reproduce runs; latest run <code>{_esc(last.commit)}</code> "
-                f"on {_esc(last.date)} ({last.mode}). Tables and claims: <code>results/{_esc(paper)}/</code>; "
-                f"every number in <code>results/metrics.json</code>.</p>")
-    body.append("<h2>Changes beyond tolerance between consecutive runs</h2>")
-    if steps:
-        body.append("<table><tr><th>metric</th><th>mode</th><th>from</th><th>to</th><th>before</th><th>after</th><th>change</th></tr>")
-        for s in steps:
-            body.append(f"<tr><td><a href=\"#{_esc(_chart_id(s.metric))}\">{_esc(s.metric)}</a></td><td>{s.mode}</td>"
-                        f'<td><code title="{_esc(s.before.commit)}">{_esc(s.before.short)}</code> {_esc(s.before.day)}</td>'
-                        f'<td><code title="{_esc(s.after.commit)}">{_esc(s.after.short)}</code> {_esc(s.after.day)}</td>'
-                        f'<td class="num">{_esc(_fmt(s.old))}</td>'
-                        f'<td class="num">{"—" if s.new is None else _esc(_fmt(s.new))}</td><td>{_esc(s.why)}</td></tr>')
-        body.append("</table>")
-    else:
-        body.append("<p>None: no metric moved beyond its tolerance between consecutive runs of the same mode.</p>")
-    body.append("<h2>Metrics over commits</h2>")
-    body.append(_legend())
-    n_charts, skipped = 0, []
-    table_of = {m: m.split(".")[1] if m.count(".") >= 2 else "" for m in mids}
-    for table in sorted(dict.fromkeys(table_of.values())):
-        figs = []
-        for mid in (m for m in mids if table_of[m] == table):
-            base = baselines.get(mid, {})
-            band = None
-            if base.get("value") is not None and math.isfinite(base["value"]):
-                a = _allowed(base["value"], base.get("tolerance", DEFAULT_TOLERANCE))
-                band = (base["value"] - a, base["value"] + a)
-            svg, npts = _chart_for(_chart_id(mid), mid, entries, lambda e, m=mid: e.metrics.get(m),
-                                   published=base.get("published"), band=band, steps=step_at, key=mid)
-            if npts == 0:
-                skipped.append(mid)
-                continue
-            lastv = next((e.metrics[mid] for e in reversed(entries) if mid in e.metrics), float("nan"))
-            pub = base.get("published")
-            cap = (f'<figcaption><b>{_esc(mid.split(".", 2)[-1])}</b> <span class="v">latest {_esc(_fmt(lastv))}'
-                   f'{"" if pub is None else " · published " + _esc(_fmt(pub))}</span></figcaption>')
-            figs.append(f"<figure>{cap}{svg}</figure>")
-            n_charts += 1
-        if figs:
-            body.append(f"<h3>{_esc(table or 'metrics')}</h3>")
-            body.append('<div class="charts">' + "".join(figs) + "</div>")
-    if skipped:
-        body.append("<h2>Not charted (no finite value in any run)</h2><ul>"
-                    + "".join(f"<li><code>{_esc(m)}</code></li>" for m in skipped) + "</ul>")
+    tables = sorted({table_key(m) for m in mids})
+    body = [f"<p><em>{esc(info['citation'])}</em></p>"] if info.get("citation") else []
+    body.append(f"<p>{len(mids)} metrics in {len(tables)} tables over {len(runs)} reproduce runs; latest run "
+                f"<code>{esc(last.commit)}</code> on {esc(last.date)} ({last.mode}). Tables and claims: "
+                f"<code>results/{esc(paper)}/</code>; every number in <code>results/metrics.json</code>.</p>")
+    body.append("<h2>Tables</h2><table><tr><th>table</th><th>metrics</th><th>charts</th><th>compact rows</th>"
+                "<th>no value</th><th>metrics that moved</th><th>pages</th></tr>")
+    for t in tables:
+        tm = [m for m in mids if table_key(m) == t]
+        pages = table_pages[t]
+        kinds = [res.locations[m].kind for m in tm]
+        links = " ".join(f'<a href="{esc(p)}">{i}</a>' for i, p in enumerate(pages, start=1))
+        body.append(f'<tr><td><a href="{esc(pages[0])}">{esc(t)}</a></td><td class="num">{len(tm)}</td>'
+                    f'<td class="num">{kinds.count("chart")}</td><td class="num">{kinds.count("row")}</td>'
+                    f'<td class="num">{kinds.count("none")}</td>'
+                    f'<td class="num">{sum(1 for m in tm if ctx.moved.get(m))}</td><td>{links}</td></tr>')
+    body.append("</table>")
+    body.append("<h2>Changes beyond tolerance between consecutive runs, by commit pair</h2>")
+    body += pairs_table(group_steps(steps), href, table_href)
     body.append("<h2>Runs</h2>")
     body += _history_table(runs)
     title = f"{paper}: {info['title']}" if info.get("title") else paper
-    return _page(title, body, _nav(papers)), n_charts, skipped
+    name = _safe_name(paper) + ".html"
+    return html_page(title, body, ctx.nav(name))
 
 
-
-def _speed_page(entries: Sequence[Entry], papers: Sequence[str]) -> tuple[str, int]:
-    body = ["<p>Wall time of each <code>skidbench reproduce</code>, the seconds of each of its stages (each paper, "
-            "real, league, gap, stress; cold runs: nothing from a cache), and the mean time of each speed benchmark "
-            "(<code>make bench</code>, pytest-benchmark; recorded into the next reproduce's history line).</p>",
-            _legend(published=False)]
-    figs = []
-    secs = [e.seconds for e in entries if e.seconds is not None]
-    if secs:
-        unit, scale = _time_unit(secs)
-        svg, n = _chart_for("c-reproduce-wall-time", "reproduce wall time", entries, lambda e: e.seconds,
-                            unit=unit, scale=scale)
-        if n:
-            figs.append(f"<figure><figcaption><b>reproduce wall time</b></figcaption>{svg}</figure>")
-    for stage in sorted({k for e in entries for k in e.stages}):  # bench.reproduce.timing: per stage and run
-        vals = [e.stages[stage] for e in entries if stage in e.stages]
-        unit, scale = _time_unit(vals)
-        svg, n = _chart_for(_chart_id("stage-" + stage), f"stage {stage}", entries,
-                            lambda e, k=stage: e.stages.get(k), unit=unit, scale=scale)
-        if n:
-            cold = [e.stages[stage] for e in entries if stage in e.stages and e.cold]
-            last = f"latest {_fmt(vals[-1] * scale)} {unit}" + (f", last cold {_fmt(cold[-1] * scale)} {unit}"
-                                                                  if cold else "")
-            figs.append(f"<figure><figcaption><b>stage {_esc(stage)}</b> <span class=\"v\">{_esc(last)}</span>"
-                        f"</figcaption>{svg}</figure>")
-    names = sorted({b for e in entries for b in e.bench})
-    for name in names:
-        vals = [e.bench[name] for e in entries if name in e.bench]
-        unit, scale = _time_unit(vals)
-        svg, n = _chart_for(_chart_id("bench-" + name), name, entries, lambda e, b=name: e.bench.get(b),
-                            unit=unit, scale=scale)
-        if n:
-            figs.append(f"<figure><figcaption><b>{_esc(name)}</b> <span class=\"v\">latest "
-                        f"{_esc(_fmt(vals[-1] * scale))} {unit}</span></figcaption>{svg}</figure>")
-    if not names:
-        body.append("<p>No speed benchmarks recorded yet: run <code>make bench</code> before "
-                    "<code>skidbench reproduce</code>.</p>")
-    body.append('<div class="charts">' + "".join(figs) + "</div>")
-    return _page("skidbench: speed over commits", body, _nav(papers)), len(figs)
-
-
-def _index_page(entries: Sequence[Entry], papers: Sequence[str], mids_of: Mapping[str, list[str]],
-                baselines: Mapping[str, Mapping[str, Any]], steps: Sequence[Step], charts: Mapping[str, int],
+def _index_page(ctx: _Context, mids_of: Mapping[str, list[str]], steps: Sequence[Step], res: DashboardPages,
                 source: str, has_asv: bool) -> str:
+    entries = ctx.entries
     last = entries[-1]
     body = [f"<p>Regression history of the paper reproductions: {len(entries)} reproduce runs from "
-            f"<code>{_esc(source)}</code>; latest <code>{_esc(last.commit)}</code> on {_esc(last.date)}. "
-            "Each paper page charts every metric over the commits, with the published value as a dashed line.</p>",
+            f"<code>{esc(source)}</code>; latest <code>{esc(last.commit)}</code> on {esc(last.date)}. "
+            "Each paper page lists its tables; each table page charts its metrics over the commits, with the "
+            'published value as a dashed line. <a href="metrics.html">Find a metric</a> by its id; '
+            f'<a href="speed.html">speed over commits</a> ({res.charts.get("speed.html", 0)} charts).'
+            + (' <a href="asv/index.html">asv site</a> (it needs an HTTP server: <code>asv preview</code>).'
+               if has_asv else "") + "</p>",
             "<h2>Papers</h2>",
-            "<table><tr><th>paper</th><th>title</th><th>metrics</th><th>charted</th><th>with a published value</th>"
-            "<th>changes beyond tolerance (all runs)</th><th>in the latest run</th><th>last run</th></tr>"]
-    for p in papers:
+            "<table><tr><th>paper</th><th>title</th><th>metrics</th><th>tables</th><th>charts</th>"
+            "<th>with a published value</th><th>changes beyond tolerance (all runs)</th><th>in the latest run</th>"
+            "<th>last run</th></tr>"]
+    for p in ctx.papers:
         mids = mids_of[p]
-        info = _paper_info(p)
         runs = [e for e in entries if any(m in e.metrics for m in mids)]
         ps = [s for s in steps if s.metric.split(".", 1)[0] == p]
         latest = [s for s in ps if s.after.index == runs[-1].index]
-        npub = sum(1 for m in mids if baselines.get(m, {}).get("published") is not None)
-        body.append(f'<tr><td><a href="{_safe_name(p)}.html">{_esc(p)}</a></td><td>{_esc(info.get("title", ""))}</td>'
-                    f'<td class="num">{len(mids)}</td><td class="num">{charts.get(_safe_name(p) + ".html", 0)}</td>'
-                    f'<td class="num">{npub}</td><td class="num">{len(ps)}</td>'
+        npub = sum(1 for m in mids if ctx.baselines.get(m, {}).get("published") is not None)
+        ncharts = sum(1 for m in mids if res.locations[m].kind == "chart")
+        body.append(f'<tr><td><a href="{_safe_name(p)}.html">{esc(p)}</a></td><td>{esc(ctx.info[p].get("title", ""))}</td>'
+                    f'<td class="num">{len(mids)}</td><td class="num">{len({table_key(m) for m in mids})}</td>'
+                    f'<td class="num">{ncharts}</td><td class="num">{npub}</td><td class="num">{len(ps)}</td>'
                     f'<td class="num{" bad" if latest else ""}">{len(latest)}</td>'
-                    f'<td><code>{_esc(runs[-1].short)}</code> {_esc(runs[-1].day)}</td></tr>')
+                    f"<td><code>{esc(runs[-1].short)}</code> {esc(runs[-1].day)}</td></tr>")
     body.append("</table>")
-    body.append(f'<p><a href="speed.html">Speed over commits</a> ({charts.get("speed.html", 0)} charts).'
-                + (' <a href="asv/index.html">asv site</a> (serve over HTTP: <code>asv preview</code>).' if has_asv else "")
-                + "</p>")
+    body.append(f"<h2>Changes beyond tolerance by commit pair ({len(steps)} in all)</h2>")
+    body += summary_table(group_steps(steps), ctx.papers, lambda p: _safe_name(p) + ".html")
     body.append("<h2>Runs</h2>")
     body += _history_table(entries)
-    return _page("skidbench regression dashboard", body, _nav(papers))
+    return html_page("skidbench regression dashboard", body, ctx.nav("index.html"))
 
 
 def render_dashboard(results_dir: str | Path, out_dir: str | Path | None = None,
-                     history: str | Path | None = None) -> DashboardPages:
-    """Write index.html, one page per paper and speed.html into ``out_dir`` (default
-    ``results_dir/dashboard``) from ``results_dir/history.jsonl`` and ``metrics.json``."""
+                     history: str | Path | None = None, bench_history: str | Path | None = None,
+                     page_budget: int = PAGE_BUDGET) -> DashboardPages:
+    """Write index.html, metrics.html, speed.html, one page per paper and the table pages into ``out_dir``
+    (default ``results_dir/dashboard``) from ``results_dir/history.jsonl``, ``metrics.json`` and
+    ``bench_history.jsonl``; table pages (``<paper>.<table>[.<k>].html``) left from an earlier render with
+    other parts are removed.  ``page_budget``: bytes of charts and rows per table page."""
     results_dir = Path(results_dir)
     out_dir = Path(out_dir) if out_dir is not None else results_dir / "dashboard"
     hist_path = Path(history) if history is not None else results_dir / "history.jsonl"
+    bench_path = Path(bench_history) if bench_history is not None else results_dir / "bench_history.jsonl"
     entries = load_history(hist_path)
     if not entries:
         raise SpecError(hist_path, "<file>", str(hist_path), "history is empty: run `skidbench reproduce` first")
+    bench_runs = load_bench_history(bench_path)
     baselines = load_baselines(results_dir)
     all_mids = sorted({m for e in entries for m in e.metrics})
     mids_of: dict[str, list[str]] = {}
@@ -442,20 +499,50 @@ def render_dashboard(results_dir: str | Path, out_dir: str | Path | None = None,
         mids_of.setdefault(m.split(".", 1)[0], []).append(m)
     papers = sorted(mids_of)
     steps = find_steps(entries, all_mids, baselines)
+    moved: dict[str, int] = {}
+    for s in steps:
+        moved[s.metric] = moved.get(s.metric, 0) + 1
+    tkeys = sorted({table_key(m) for m in all_mids})
+    ctx = _Context(entries=entries, baselines=baselines, step_at={(s.metric, s.after.index): s for s in steps},
+                   moved=moved, valued=frozenset(s.metric for s in steps if not s.vanished),
+                   anchor=_unique(all_mids, lambda m: "c-" + "".join(c if c.isalnum() or c in "-_" else "-" for c in m)),
+                   papers=papers, budget=page_budget, info={p: _paper_info(p) for p in papers},
+                   table_stem=_unique(tkeys, lambda t: ".".join(_safe_name(x) for x in t.split(".", 1))
+                                      if "." in t else _safe_name(t) + "._"))
     res = DashboardPages(out_dir=out_dir, steps=steps)
+    plans = {t: _plan_table(t.split(".", 1)[0], t, [m for m in all_mids if table_key(m) == t], ctx) for t in tkeys}
+    for plan in plans.values():
+        res.locations.update((loc.metric, loc) for loc in plan.locations(ctx))
+    table_pages = {t: list(plan.names) for t, plan in plans.items()}
+
+    def href(metric: str) -> str:
+        return res.locations[metric].href
+
+    def table_href(t: str) -> str:
+        return table_pages[t][0] if t in table_pages else ""
+
     for p in papers:
-        page, n, skipped = _paper_page(p, mids_of[p], entries, baselines,
-                                       [s for s in steps if s.metric.split(".", 1)[0] == p], papers)
+        ps = [s for s in steps if s.metric.split(".", 1)[0] == p]
+        for t in sorted({table_key(m) for m in mids_of[p]}):
+            for name, page, n, nrows, none in _table_pages(plans[t], ctx, [s for s in ps if table_key(s.metric) == t],
+                                                           href, table_href):
+                atomic_write_text(out_dir / name, page)
+                res.charts[name], res.rows[name], res.not_charted[name] = n, nrows, none
         name = _safe_name(p) + ".html"
-        atomic_write_text(out_dir / name, page)
-        res.charts[name], res.not_charted[name] = n, skipped
-    page, n = _speed_page(entries, papers)
+        atomic_write_text(out_dir / name, _paper_page(p, mids_of[p], ctx, ps, res, href, table_href, table_pages))
+        res.charts[name] = 0
+    page, n = speed_page(entries, bench_runs, ctx.nav("speed.html"), _rel(bench_path, results_dir))
     atomic_write_text(out_dir / "speed.html", page)
     res.charts["speed.html"] = n
+    atomic_write_text(out_dir / "metrics.html", metric_index_page(list(res.locations.values()), ctx.nav("metrics.html")))
+    res.charts["metrics.html"] = 0
     has_asv = (out_dir / "asv" / "index.html").is_file()
-    atomic_write_text(out_dir / "index.html", _index_page(entries, papers, mids_of, baselines, steps, res.charts,
-                                                          _rel(hist_path, results_dir), has_asv))
+    atomic_write_text(out_dir / "index.html", _index_page(ctx, mids_of, steps, res, _rel(hist_path, results_dir),
+                                                          has_asv))
     res.charts["index.html"] = 0
+    for old in sorted(out_dir.glob("*.*.html")):  # table pages of an earlier render that this one did not write
+        if old.name not in res.charts:
+            old.unlink()
     return res
 
 

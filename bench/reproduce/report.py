@@ -436,13 +436,7 @@ def append_history(results_dir: Path, results: list[PaperResult], quick: bool, s
         "quick": quick, "extended": extended, "seconds": round(seconds, 3),
         "metrics": {f"{r.paper}.{k}": v for r in results for k, v in r.metrics.items() if isinstance(v, (int, float))},
     }
-    bench_json = REPO / ".benchmarks" / "latest.json"
-    if bench_json.is_file():
-        try:
-            b = json.loads(bench_json.read_text())
-            entry["bench"] = {x["name"]: x["stats"]["mean"] for x in b.get("benchmarks", [])}
-        except (ValueError, KeyError):
-            pass
+    # the speed benchmarks have a history of their own: `make bench` appends to results/bench_history.jsonl
     path = history_path(results_dir)
     old = path.read_text() if path.is_file() else ""
     atomic_write_text(path, old + dumps_json(entry, sort_keys=True) + "\n")
