@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
-from bench.report.io import atomic_write_text, dumps_json
+from bench.report.io import atomic_write_text, dumps_json, jsonl_objects
 from bench.spec import SpecError
 
 __all__ = ["BenchStat", "BenchRun", "read_benchmark_json", "record_bench", "load_bench_history", "main"]
@@ -144,18 +144,7 @@ def load_bench_history(path: str | Path) -> list[BenchRun]:
     if not path.is_file():
         return []
     out: list[BenchRun] = []
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            obj = json.loads(line)
-        except ValueError as exc:
-            raise SpecError(path, f"line {lineno}", line[:60], f"malformed JSON: {exc}") from None
-        if not isinstance(obj, dict):
-            raise SpecError(path, f"line {lineno}", line[:60], "a JSON object per line")
-        for key in ("commit", "date", "benchmarks"):
-            if key not in obj:
-                raise SpecError(path, f"line {lineno}: {key}", None, "required field is missing")
+    for lineno, obj in jsonl_objects(path, ("commit", "date", "benchmarks")):
         if not isinstance(obj["benchmarks"], dict):
             raise SpecError(path, f"line {lineno}: benchmarks", obj["benchmarks"], "an object {name: stats}")
         stats = {str(k): _stat(path, f"line {lineno}: benchmarks.{k}", v) for k, v in obj["benchmarks"].items()}

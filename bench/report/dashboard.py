@@ -47,7 +47,7 @@ from bench.report.changes import (DEFAULT_TOLERANCE, Step, find_steps, group_ste
                                   table_key)
 from bench.report.chart import Series, axis_label, esc, fmt, runs_chart, series_by_mode, sparkline, svg_chart
 from bench.report.html_page import html_page, legend, nav_bar
-from bench.report.io import atomic_write_text, json_number
+from bench.report.io import atomic_write_text, json_number, jsonl_objects
 from bench.report.metric_index import MetricLocation, metric_index_page
 from bench.report.speed_page import speed_page
 from bench.spec import SpecError
@@ -108,18 +108,7 @@ def load_history(path: str | Path) -> list[Entry]:
     if not path.is_file():
         raise SpecError(path, "<file>", str(path), "no history file: run `skidbench reproduce` first")
     entries: list[Entry] = []
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
-        if not line.strip():
-            continue
-        try:
-            obj = json.loads(line)
-        except ValueError as exc:
-            raise SpecError(path, f"line {lineno}", line[:60], f"malformed JSON: {exc}") from None
-        if not isinstance(obj, dict):
-            raise SpecError(path, f"line {lineno}", line[:60], "a JSON object per line")
-        for key in ("commit", "metrics"):
-            if key not in obj:
-                raise SpecError(path, f"line {lineno}: {key}", None, "required field is missing")
+    for lineno, obj in jsonl_objects(path, ("commit", "metrics")):
         if not isinstance(obj["metrics"], dict):
             raise SpecError(path, f"line {lineno}: metrics", obj["metrics"], "an object {metric id: number}")
         if obj.get("extended"):

@@ -86,3 +86,25 @@ def atomic_savefig(fig: Any, path: str | Path, **kw: Any) -> Path:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=path.suffix.lstrip(".") or "png", **kw)
     return path
+
+
+def jsonl_objects(path: Path, required: tuple[str, ...] = ()) -> list[tuple[int, dict]]:
+    """(line number, object) of each non-blank line of a JSON-lines file; a malformed line, a line that is not an
+    object or one without a ``required`` key is a :class:`bench.spec.SpecError` naming the file, line and field."""
+    from bench.spec import SpecError
+
+    out = []
+    for lineno, line in enumerate(Path(path).read_text().splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            obj = json.loads(line)
+        except ValueError as exc:
+            raise SpecError(path, f"line {lineno}", line[:60], f"malformed JSON: {exc}") from None
+        if not isinstance(obj, dict):
+            raise SpecError(path, f"line {lineno}", line[:60], "a JSON object per line")
+        for key in required:
+            if key not in obj:
+                raise SpecError(path, f"line {lineno}: {key}", None, "required field is missing")
+        out.append((lineno, obj))
+    return out
