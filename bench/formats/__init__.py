@@ -26,9 +26,26 @@
       topic = "/imu/data"
       gyro_unit = "rad/s"         # or deg/s ; accel_unit = "m/s^2" or "g"
       [gnss]                      # -> gnss_x, gnss_y, gnss_yaw, gnss_vx, gnss_vy (world frame)
-      topic = "/gnss/odom"        # nav_msgs/Odometry | geometry_msgs/PoseStamped
+      topic = "/gnss/odom"        # nav_msgs/Odometry | geometry_msgs/PoseStamped | sensor_msgs/NavSatFix
       [reference]                 # -> ref_x, ref_y, ref_yaw
       [truth]                     # -> truth_x, truth_y, truth_yaw (+ truth_vx, vy, wz: body frame)
+
+  What a Husky or Jackal bag carries (no JointState)::
+
+      [platform]
+      name = "husky"                                # the wheel radius and track of the twists below
+      [wheels]
+      topic = "/husky_velocity_controller/odom"     # nav_msgs/Odometry: twist -> wheel speeds (DD inverse)
+      [commands]
+      topic = "/cmd_vel"                            # geometry_msgs/Twist or TwistStamped -> cmd_wl, cmd_wr
+      [gnss]
+      topic = "/navsat/fix"                         # sensor_msgs/NavSatFix -> local ENU metres (pymap3d)
+      datum_lat = 46.78                             # optional ENU origin [deg, deg, m]; default the first fix
+      datum_lon = -71.27
+      datum_alt = 60.0
+
+  (``wheel_radius`` / ``track`` in a ``[wheels]`` or ``[commands]`` section override the platform's;
+  :mod:`bench.formats.bag` says how each message type is read.)
 
   Bags are read with ``rosbags`` (``rosbags.highlevel.AnyReader``: ROS 1 ``.bag`` files and
   ROS 2 bag directories, no ROS install).  Rows of the Run are the union of all sample

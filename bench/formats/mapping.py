@@ -42,16 +42,18 @@ class WheelMap:
 
     left: str = ""  # CSV columns
     right: str = ""
-    topic: str = ""  # bags: sensor_msgs/JointState
+    topic: str = ""  # bags: sensor_msgs/JointState; wheels also nav_msgs/Odometry, commands geometry_msgs/Twist(Stamped)
     left_joints: tuple[str, ...] = ()
     right_joints: tuple[str, ...] = ()
     unit: str = "rad/s"
-    wheel_radius: float = 0.0  # [m], for unit m/s; 0 = the platform's
+    wheel_radius: float = 0.0  # [m], for unit m/s and a twist topic; 0 = the platform's
+    track: float = 0.0  # [m], for a twist topic (Odometry, Twist): v, omega -> wheel speeds; 0 = the platform's
     invert_left: bool = False
     invert_right: bool = False
     _checks = {
         "unit": (lambda x: x in _WHEEL_UNITS, f"one of {list(_WHEEL_UNITS)}"),
         "wheel_radius": (lambda x: 0 <= x < 5 and math.isfinite(x), "in [0, 5) m (0 = platform's)"),
+        "track": (lambda x: 0 <= x < 20 and math.isfinite(x), "in [0, 20) m (0 = platform's)"),
     }
 
     @property
@@ -84,7 +86,7 @@ class ImuMap:
 class PoseMap:
     """A planar pose source (GNSS/odometry, external reference or ground truth)."""
 
-    topic: str = ""  # bags: nav_msgs/Odometry, geometry_msgs/PoseStamped(WithCovarianceStamped)
+    topic: str = ""  # bags: nav_msgs/Odometry, geometry_msgs/PoseStamped(WithCovarianceStamped), sensor_msgs/NavSatFix
     x: str = ""  # CSV columns
     y: str = ""
     yaw: str = ""
@@ -95,7 +97,14 @@ class PoseMap:
     yaw_unit: str = "rad"  # also for wz (per second)
     velocity_frame: str = "body"  # CSV vx, vy given in the body or the world frame
     yaw_unwrapped: bool = False  # True: yaw may exceed +-pi (skips the degrees check)
+    # NavSatFix: the local ENU frame's origin [deg, deg, m]; NaN = the first fix (status >= STATUS_FIX)
+    datum_lat: float = math.nan
+    datum_lon: float = math.nan
+    datum_alt: float = math.nan
     _checks = {
+        "datum_lat": (lambda x: math.isnan(x) or -90 <= x <= 90, "a latitude in [-90, 90] deg"),
+        "datum_lon": (lambda x: math.isnan(x) or -180 <= x <= 180, "a longitude in [-180, 180] deg"),
+        "datum_alt": (lambda x: math.isnan(x) or -1e4 < x < 1e5, "an altitude in (-1e4, 1e5) m"),
         "position_unit": (lambda x: x in _POS_UNITS, f"one of {sorted(_POS_UNITS)}"),
         "yaw_unit": (lambda x: x in _ANGLE_UNITS, f"one of {sorted(_ANGLE_UNITS)}"),
         "velocity_frame": (lambda x: x in ("body", "world"), "'body' or 'world'"),
