@@ -12,7 +12,7 @@ from typing import Any
 
 from bench.spec import Platform, SpecError, build, load_platform
 
-__all__ = ["G0", "TimeMap", "WheelMap", "ImuMap", "PoseMap", "PlatformMap", "ImportMapping", "load_mapping"]
+__all__ = ["G0", "TimeMap", "WheelMap", "ImuMap", "PoseMap", "DatumMap", "PlatformMap", "ImportMapping", "load_mapping"]
 
 G0 = 9.80665
 
@@ -22,6 +22,8 @@ _GYRO_UNITS = {"rad/s": 1.0, "deg/s": math.pi / 180.0}
 _ACCEL_UNITS = {"m/s^2": 1.0, "g": G0}
 _POS_UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 _ANGLE_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
+_NAVSAT_VELOCITY = ("none", "fix_difference")
+_NAVSAT_HEADING = ("none", "course")
 
 
 @dataclass(frozen=True)
@@ -42,7 +44,8 @@ class WheelMap:
 
     left: str = ""  # CSV columns
     right: str = ""
-    topic: str = ""  # bags: sensor_msgs/JointState; wheels also nav_msgs/Odometry, commands geometry_msgs/Twist(Stamped)
+    # bags: sensor_msgs/JointState; [wheels] also nav_msgs/Odometry, [commands] geometry_msgs/Twist(Stamped)
+    topic: str = ""
     left_joints: tuple[str, ...] = ()
     right_joints: tuple[str, ...] = ()
     unit: str = "rad/s"
@@ -97,14 +100,14 @@ class PoseMap:
     yaw_unit: str = "rad"  # also for wz (per second)
     velocity_frame: str = "body"  # CSV vx, vy given in the body or the world frame
     yaw_unwrapped: bool = False  # True: yaw may exceed +-pi (skips the degrees check)
-    # NavSatFix: the local ENU frame's origin [deg, deg, m]; NaN = the first fix (status >= STATUS_FIX)
-    datum_lat: float = math.nan
-    datum_lon: float = math.nan
-    datum_alt: float = math.nan
+    # bags, sensor_msgs/NavSatFix topics only (a fix has a position, no heading and no velocity):
+    velocity: str = "none"  # "fix_difference": world-frame gnss_vx, gnss_vy from the fixes' ENU track ([gnss] only)
+    heading: str = "none"  # "course": yaw = the course over ground of that track, where it is >= course_min_speed
+    course_min_speed: float = 0.2  # [m/s] below it the course is undefined (at rest): no yaw sample
     _checks = {
-        "datum_lat": (lambda x: math.isnan(x) or -90 <= x <= 90, "a latitude in [-90, 90] deg"),
-        "datum_lon": (lambda x: math.isnan(x) or -180 <= x <= 180, "a longitude in [-180, 180] deg"),
-        "datum_alt": (lambda x: math.isnan(x) or -1e4 < x < 1e5, "an altitude in (-1e4, 1e5) m"),
+        "velocity": (lambda x: x in _NAVSAT_VELOCITY, f"one of {list(_NAVSAT_VELOCITY)}"),
+        "heading": (lambda x: x in _NAVSAT_HEADING, f"one of {list(_NAVSAT_HEADING)}"),
+        "course_min_speed": (lambda x: 0 < x < 100 and math.isfinite(x), "in (0, 100) m/s"),
         "position_unit": (lambda x: x in _POS_UNITS, f"one of {sorted(_POS_UNITS)}"),
         "yaw_unit": (lambda x: x in _ANGLE_UNITS, f"one of {sorted(_ANGLE_UNITS)}"),
         "velocity_frame": (lambda x: x in ("body", "world"), "'body' or 'world'"),
@@ -123,6 +126,25 @@ class PlatformMap:
 
 
 @dataclass(frozen=True)
+class DatumMap:
+    """The origin of the local ENU frame (x east, y north) of every sensor_msgs/NavSatFix topic, WGS-84; all NaN
+    (the section left out) = the first fix with status >= STATUS_FIX of the NavSatFix topics, by time."""
+
+    latitude_deg: float = math.nan
+    longitude_deg: float = math.nan
+    altitude: float = math.nan  # [m] above the WGS-84 ellipsoid; NaN = the first fix's (0 if it has none)
+    _checks = {
+        "latitude_deg": (lambda x: -90 <= x <= 90, "a latitude in [-90, 90] deg"),
+        "longitude_deg": (lambda x: -180 <= x <= 180, "a longitude in [-180, 180] deg"),
+        "altitude": (lambda x: -1e4 < x < 1e5, "an ellipsoidal height in (-1e4, 1e5) m"),
+    }
+
+    @property
+    def used(self) -> bool:
+        return not (math.isnan(self.latitude_deg) and math.isnan(self.longitude_deg) and math.isnan(self.altitude))
+
+
+@dataclass(frozen=True)
 class ImportMapping:
     run_id: str = ""
     nan_policy: str = "error"  # error | drop (a NaN/inf sample becomes "no sample")
@@ -134,6 +156,7 @@ class ImportMapping:
     gnss: PoseMap = field(default_factory=PoseMap)
     reference: PoseMap = field(default_factory=PoseMap)
     truth: PoseMap = field(default_factory=PoseMap)
+    datum: DatumMap = field(default_factory=DatumMap)
     source_file: str = ""
     _checks = {"nan_policy": (lambda x: x in ("error", "drop"), "'error' or 'drop'")}
 
@@ -194,4 +217,12 @@ def _wheel_factor(wm: WheelMap, section: str, platform: Platform | None, mapping
 
 
 def _mapping_meta(mp: ImportMapping) -> dict[str, Any]:
-    return {k: v for k, v in asdict(mp).items()}
+    """The mapping as metadata (strict JSON: a NaN "not given", as of the datum, becomes None)."""
+    def clean(v: Any) -> Any:
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, float) and not math.isfinite(v):
+            return None
+        return v
+
+    return clean(asdict(mp))
