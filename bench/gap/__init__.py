@@ -13,8 +13,11 @@
    chosen are in that module's docstring).
 5. Add the selected effect(s), re-run, and report the gap before/after per channel with a figure
    and a markdown summary (:mod:`bench.gap.report`).
-6. Say "no significant missing effect" or "unexplained residual: ..., largest in regime ..."
-   when that is what the data say.
+6. Say "no significant missing effect" (with the detection limit of every effect: the smallest
+   size the data would have detected) or "unexplained residual: ..., largest in regime ..."
+   when that is what the data say; beside named effects, the absolute goodness of fit (what is
+   left against the noise floor, :mod:`bench.gap.significance`): a model that explains most of a
+   large gap but leaves far more than the noise is an unexplained residual, not a named effect.
 
 The measured run's truth columns are never read (the workflow works on ``without_truth()``).
 With a model plugin only the sensor effects of the catalogue apply (a plugin has no spec to
@@ -66,6 +69,8 @@ class GapResult:
     n_simulations: int
     comparison: str
     series: dict[str, Any] = field(default_factory=dict, repr=False)  # for the figure
+    fit: dict[str, Any] = field(default_factory=dict)  # absolute goodness of fit (bench.gap.significance)
+    detection_limits: dict[str, Any] = field(default_factory=dict)  # per effect, when nothing is significant
 
     def to_json(self) -> dict[str, Any]:
         """The result as a JSON document.  The wall time ``runtime_s`` is left out (the Markdown report and
@@ -79,7 +84,7 @@ class GapResult:
             "concentration": self.concentration, "cost": self.cost, "candidates": self.candidates,
             "channels_missing": self.channels_missing, "not_applicable": self.not_applicable,
             "thresholds": self.thresholds, "n_simulations": self.n_simulations,
-            "comparison": self.comparison,
+            "comparison": self.comparison, "fit": self.fit, "detection_limits": self.detection_limits,
         }
 
     @property
@@ -93,7 +98,8 @@ class GapResult:
 
 COMPARISON = ("measured channels vs the model's noise-free signals (physics trace of the replayed "
               "model), residuals normalised by noise scales estimated from the measured data; model pose "
-              "corrected by an SE(2) initial-pose offset fitted on the first second")
+              "corrected by an SE(2) initial-pose offset fitted on the first second (or the first 20 pose samples; "
+              "the rotation only where they determine it)")
 
 
 def _const_trace(trace: dict[str, np.ndarray], scn: Scenario, overrides: Mapping[str, Any]) -> dict[str, np.ndarray]:
@@ -212,10 +218,15 @@ def _assemble(run: Run, scn: Scenario, model: str, ev: Evaluator, sel: Selection
     conc_b, conc_a = _concentration(space, sig_before, rb), _concentration(space, sig_after, ra)
     entries = [_effect_entry(n, sel.final, ev.scn) for n in sel.selected]
     effects, partial = (entries, []) if sel.named else ([], entries)
+    q = sel.quality
+    fit_text = (f"{q.verdict}: final cost {q.ratio_cv:.3g} x the noise floor (band {q.band[0]:.2f}-{q.band[1]:.2f})"
+                if q is not None else "")
     if sel.verdict == "missing effect":
         kind = "missing_effect"
         label = "missing effect" if len(effects) == 1 else "missing effects"
         verdict = f"{label}: " + "; ".join(f"{e['name']} ({_fmt_params(e)})" for e in effects)
+        if fit_text:
+            verdict += f"; residual {fit_text}"
     elif sel.verdict == "no significant missing effect":
         kind = "no_significant_effect"
         verdict = "no significant missing effect"
@@ -227,20 +238,21 @@ def _assemble(run: Run, scn: Scenario, model: str, ev: Evaluator, sel: Selection
         left = 100.0 * (1.0 - sel.explained_fraction) if partial else 100.0
         if partial:
             verdict = (f"unexplained residual: {left:.0f}% of the excess gap remains after the best candidate(s) "
-                       f"{', '.join(e['name'] for e in partial)}, {where}")
+                       f"{', '.join(e['name'] for e in partial)}" + (f" ({fit_text})" if fit_text else "")
+                       + f", {where}")
         else:
             verdict = f"unexplained residual: no catalogue effect explains the gap, {where}"
     candidates = []
     for i, r in enumerate(sel.rounds):
         candidates.append({
-            "round": i + 1, "accepted": r.accepted, "gain": r.gain, "reason": r.reason,
+            "round": i + 1, "accepted": r.accepted, "gain": r.gain, "chi2": r.chi2, "reason": r.reason,
             "screening": [{"effect": s.effect, "estimate": list(s.theta), "predicted_cost": s.predicted_cost,
                            "how": s.note} for s in r.screens],
             "fits": [f.brief() for f in r.fits],
         })
     jn = sel.j_noise
     cost = {"j_noise": jn, "nominal": sel.nominal.cost, "final": sel.final.cost, "final_cv": sel.final.cost_cv,
-            "explained_fraction": sel.explained_fraction}
+            "explained_fraction": sel.explained_fraction, "final_jitter": sel.final.jitter}
     # figure series: the channel the final model improves most (else the worst channel)
     def improvement(c: str) -> float:
         return (gb[c]["rms"] - ga[c]["rms"]) / space.sigma[c]
@@ -264,8 +276,10 @@ def _assemble(run: Run, scn: Scenario, model: str, ev: Evaluator, sel: Selection
         thresholds={"kappa": thr.kappa, "min_gain": thr.min_gain, "min_gain_fraction": thr.min_gain_fraction,
                     "min_gain_initial": thr.min_gain_initial,
                     "significant_excess": thr.significant_excess, "unexplained_fraction": thr.unexplained_fraction,
+                    "significance_p": thr.significance_p, "far_above": thr.far_above,
                     "max_effects": thr.max_effects},
-        runtime_s=float(elapsed), n_simulations=ev.n_sims, comparison=COMPARISON, series=series)
+        runtime_s=float(elapsed), n_simulations=ev.n_sims, comparison=COMPARISON, series=series,
+        fit=q.to_json() if q is not None else {}, detection_limits=sel.detection)
 
 
 def write_worked_example(out_dir: str | Path = "results/gap", workers: int | None = None) -> GapResult:

@@ -215,6 +215,7 @@ class FitResult:
     traces: dict = field(default_factory=dict, repr=False)
     n_sims: int = 0  # simulations run by this fit (in its worker)
     jac: np.ndarray | None = field(default=None, repr=False)  # d z / d u at the solution (free params)
+    jitter: float = 0.0  # RMS of the simulated cost about the fit's bowl near the solution (cost_jitter)
 
     def brief(self) -> dict[str, Any]:
         return {"effects": list(self.effects), "values": self.values, "stderr": self.stderr,
@@ -231,6 +232,10 @@ class Screen:
     predicted_cost: float
     evaluated: bool  # predicted_cost is an actual evaluation (not a linear prediction)
     note: str = ""
+    # d z / d u at the effect's neutral value (rows of ResidualSpace.zvec, columns the parameters in the
+    # fit's variables u: log10 for scale parameters); None where the effect has no neutral value (grid
+    # screening) or no response there (a current ceiling that never binds).  For detection limits.
+    sensitivity: np.ndarray | None = field(default=None, repr=False, compare=False)
 
 
 def _clip(theta: np.ndarray, layout: Layout) -> np.ndarray:
@@ -271,7 +276,8 @@ def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: n
     neutral = effect.neutral(scn)
     if effect.kind == "sensor":
         res = refine(ev, lay, np.array(neutral, float), max_nfev=20)
-        return Screen(effect.name, res.theta, res.cost, True, "exact (sensor effect, no simulation)")
+        return Screen(effect.name, res.theta, res.cost, True, "exact (sensor effect, no simulation)",
+                      sensitivity=res.jac)
     if effect.kind == "delay":
         d0 = neutral[0]
         p = effect.params[0]
@@ -280,7 +286,9 @@ def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: n
             return ev.cost(base.replace(shift=base.shift + s))
 
         r = minimize_scalar(f, bounds=(0.0, p.upper - d0), method="bounded", options={"xatol": 1e-4})
-        return Screen(effect.name, (d0 + float(r.x),), float(r.fun), True, "time-shift surrogate")
+        h = 0.25 * scn.dt
+        sens = ((ev.z(base.replace(shift=base.shift + h)) - z0) / h)[:, None]
+        return Screen(effect.name, (d0 + float(r.x),), float(r.fun), True, "time-shift surrogate", sensitivity=sens)
     if neutral is None:
         best = None
         for g in effect.probe_grid:
@@ -309,7 +317,7 @@ def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: n
     r = lsq_linear(S, -z0, bounds=(lo - u0, hi - u0))
     u = u0 + r.x
     pred = float(np.sum((z0 + S @ r.x) ** 2))
-    return Screen(effect.name, tuple(lay.to_theta(u)), pred, False, "linearised")
+    return Screen(effect.name, tuple(lay.to_theta(u)), pred, False, "linearised", sensitivity=S)
 
 
 def measured_current_ceiling(space: ResidualSpace, nominal: Mapping[str, np.ndarray], rel: float = 0.97
@@ -465,6 +473,7 @@ def _result(ev: Evaluator, layout: Layout, u: np.ndarray, z: np.ndarray, J: np.n
     e = z * rs
     m = e.size
     se_u = np.full(p, np.nan)
+    jitter = 0.0
     lo, hi = layout.bounds_u()
     # the previously selected (fixed) effects are refitted per fold and per jackknife block too
     Jcv = J if prior_jac is None or prior_jac.size == 0 else np.hstack([prior_jac, J])
@@ -535,7 +544,7 @@ def _result(ev: Evaluator, layout: Layout, u: np.ndarray, z: np.ndarray, J: np.n
     traces = {cfg.overrides: ev.trace(cfg.overrides)}
     jac_all = Jcv if prior_jac is not None and prior_jac.size else J
     return FitResult(names, values, stderr, folds, cost, cv, p, cfg, nfev, str(status), tuple(float(t) for t in theta),
-                     cfg.overrides, traces, jac=jac_all)
+                     cfg.overrides, traces, jac=jac_all, jitter=float(jitter))
 
 
 def _refine_task(args) -> FitResult:

@@ -76,6 +76,32 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
              f"explained fraction of the excess {100 * c['explained_fraction']:.1f}%. "
              f"{res.n_simulations} simulations, {res.runtime_s:.1f} s.")
     L.append("")
+    fq = getattr(res, "fit", {}) or {}
+    if fq:
+        lo, hi = fq["noise_band"]
+        L.append(f"Goodness of fit: {fq['verdict']} (final held-out cost {_f(fq['final_cv_over_noise'], 3)} x the "
+                 f"noise floor J_noise; a correct model lies within {lo:.2f}-{hi:.2f} x, the sampling band).")
+        L.append("")
+    det = getattr(res, "detection_limits", {}) or {}
+    if det:
+        L.append("## Detection limits (nothing significant found)")
+        L.append("")
+        L.append("Smallest change from the nominal value the selection would have detected on these data "
+                 "(screening sensitivity x the significance threshold; bench/gap/significance.py):")
+        L.append("")
+        L.append("| effect | parameter | nominal | detectable change | via |")
+        L.append("|---|---|---|---|---|")
+        for name, d in det.items():
+            if not d.get("limits"):
+                L.append(f"| {name} | - | - | n/a ({d.get('reason', '')}) | - |")
+                continue
+            for k, v in d["limits"].items():
+                unit = "" if v["unit"] in ("-", "") else f" {v['unit']}"
+                ch = ("not detectable" if not math.isfinite(v["change"]) else
+                      f"{100 * v['relative']:.3g}% ({_f(v['change'], 3)}{unit})" if "relative" in v else
+                      f"{_f(v['change'], 3)}{unit}")
+                L.append(f"| {name} | {k} | {_f(d['nominal'].get(k))} | {ch} | {v['how']} |")
+        L.append("")
     for title, rows in (("Named effects", res.effects), ("Partial candidates (not named)", res.partial)):
         if not rows:
             continue
@@ -148,7 +174,9 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
     L.append("## Method")
     L.append("")
     L.append(f"Comparison: {res.comparison}. Pose channels after the least-squares SE(2) correction of the "
-             "initial pose, estimated on the first second of the run. Selection thresholds (bench/gap/select.py): "
+             "initial pose, estimated on the first second of the run (longer when it holds fewer than 20 pose "
+             "samples; the rotation only where those samples determine it). Selection thresholds "
+             "(bench/gap/select.py): "
              + ", ".join(f"{k} = {v}" for k, v in res.thresholds.items()) + ".")
     L.append("")
     if figure:

@@ -25,12 +25,29 @@ residual is not considered meaningful (table ``FLOORS``); it matters for channel
 without noise (torques, currents).  A channel whose measured samples are missing or all NaN is
 left out and named in the report.
 
+Quantised channels (:func:`quantisation_step`): when every sample of a channel sits on a lattice
+``n q`` (encoder speeds are count differences times ``q = 2 pi / (counts_per_rev T)``), the MAD of
+second differences is the MAD of a few discrete values and says little: at a constant speed of
+``n + f`` counts per sample the count difference is the same on most samples, the MAD is 0 and the
+noise scale collapsed to its floor, while the residual against the noise-free model is the
+quantisation error, of variance ``f (1 - f) q^2`` (up to ``q^2 / 4``).  So the noise scale of a
+quantised channel is at least the quantisation's: ``q / 2`` for a difference of two quantised
+samples (the largest ``f (1 - f) q^2``; ``q^2 / 6``, two independent ``q^2 / 12``, on average over
+speeds, where the MAD estimate, 0.6 q, is the larger), ``q / sqrt(12)`` for a channel quantised
+once.
+
+Sensors that did not report: a reference pose logged at a higher rate than the sensor's (held
+between reports, as the DRIVE Husky table does) repeats the previous pose exactly; those rows are
+not samples and are left out (:func:`reported_rows`), so noise scales, the pose alignment and
+sample counts see only the poses the sensor reported.
+
 The cost of a model is ``J = sum_c w_c mean_k (r_ck / sigma_c)^2``: about
 ``J_noise = sum_c w_c (sigma_hat_c / sigma_c)^2`` when the model is right and only sensor noise
 remains.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -63,27 +80,57 @@ FLOORS = {  # resolution floors of the noise scale (SI)
     "ref_x": 0.002, "ref_y": 0.002, "ref_yaw": 0.001,
 }
 ANGLE_CHANNELS = ("ref_yaw",)
+POSE_CHANNELS = ("ref_x", "ref_y", "ref_yaw")
+DIFFERENCED_CHANNELS = ("enc_wl", "enc_wr")  # a sample is a difference of two quantised counts
 ALIGN_WINDOW = 1.0  # s at the start of the run on which the initial-pose correction is estimated
+ALIGN_MIN_SAMPLES = 20  # ... extended until it holds this many pose samples (a 5 Hz DGPS: 4 s)
+ALIGN_RESOLUTION = 0.5  # rotation fitted only if its error moves the pose by <= this x sigma over the run
 # pose residuals accumulate earlier errors: they would point "where" analyses at the end of a run
 CUMULATIVE_CHANNELS = ("ref_x", "ref_y", "ref_yaw")
 
 
 def _heading(run: Run) -> tuple[np.ndarray, np.ndarray] | None:
-    for name in ("ref_yaw", "gnss_yaw"):
-        if run.has(name):
-            t, v = run.samples(name)
-            return t, np.unwrap(v)
+    if run.has("ref_yaw"):
+        m = reported_rows(run, POSE_CHANNELS) & np.isfinite(run["ref_yaw"])
+        return run.t[m], np.unwrap(run["ref_yaw"][m])
+    if run.has("gnss_yaw"):
+        t, v = run.samples("gnss_yaw")
+        return t, np.unwrap(v)
     return None
 
 
+def reported_rows(run: Run, names: tuple[str, ...]) -> np.ndarray:
+    """Row mask of the samples a sensor logging the channels ``names`` together actually reported:
+    finite, and not an exact repeat of the previous sample of every one of them (a pose held
+    between reports).  Channels of ``names`` the run lacks are ignored."""
+    present = [n for n in names if n in run.data.columns and run.has(n)]
+    if not present:
+        return np.zeros(run.t.size, bool)
+    vals = np.column_stack([run[n] for n in present])
+    finite = np.isfinite(vals).all(axis=1)
+    idx = np.flatnonzero(finite)
+    keep = np.zeros(run.t.size, bool)
+    if idx.size:
+        v = vals[idx]
+        fresh = np.r_[True, np.any(v[1:] != v[:-1], axis=1)]
+        keep[idx[fresh]] = True
+    return keep
+
+
 def measured_channels(run: Run) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """(t, value) of every residual channel the measured run has (finite samples only)."""
+    """(t, value) of every residual channel the measured run has (finite samples only; pose rows
+    where the reference sensor did not report are left out, :func:`reported_rows`)."""
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    pose_rows = reported_rows(run, POSE_CHANNELS)
     for c in CHANNELS:
         if c.startswith("body_"):
             continue
         if c in run.data.columns and run.has(c):
-            out[c] = run.samples(c)
+            t, v = run.samples(c)
+            if c in POSE_CHANNELS:
+                m = pose_rows & np.isfinite(run[c])
+                t, v = run.t[m], run[c][m]
+            out[c] = (t, v)
     hdg = _heading(run)
     if hdg is not None and run.has("gnss_vx") and run.has("gnss_vy"):
         t = run.t
@@ -107,6 +154,32 @@ def noise_scale(values: np.ndarray) -> float:
     return float(1.4826 * mad / np.sqrt(6.0))
 
 
+def quantisation_step(values: np.ndarray, rtol: float = 1e-3) -> float:
+    """The step ``q`` of a channel whose samples all sit on a lattice ``v0 + n q`` (a quantised
+    signal), 0 when they do not: fewer than 10 samples, more distinct values than a quarter of the
+    samples, or a sample more than ``rtol`` q off the lattice.  ``q`` is the smallest gap between
+    distinct values (values within 1e-9 of the largest are one value: rounding)."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size < 10:
+        return 0.0
+    u = np.unique(v)
+    gaps = np.diff(u)
+    gaps = gaps[gaps > 1e-9 * max(float(np.max(np.abs(u))), 1e-300)]  # rounding of n q / T is no gap
+    if gaps.size < 1 or gaps.size + 1 > v.size // 4:
+        return 0.0
+    q = float(np.min(gaps))
+    k = (v - u[0]) / q
+    return q if float(np.max(np.abs(k - np.rint(k)))) <= rtol else 0.0
+
+
+def quantisation_noise(channel: str, values: np.ndarray) -> float:
+    """Noise scale a quantised channel has at least (module docstring): ``q / 2`` for a difference
+    of two quantised samples (encoders), ``q / sqrt(12)`` otherwise; 0 when not quantised."""
+    q = quantisation_step(values)
+    return 0.5 * q if channel in DIFFERENCED_CHANNELS else q / math.sqrt(12.0)
+
+
 def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return (a - b + np.pi) % (2 * np.pi) - np.pi
 
@@ -125,6 +198,8 @@ class ResidualSpace:
     regime_names: tuple[str, ...]
     missing: tuple[str, ...]
     block: float = 2.0  # [s] length of the time blocks of the folds and of the jackknife (bench.gap.fit)
+    align_until: float = ALIGN_WINDOW  # [s] pose samples up to this time fit the initial-pose correction
+    align_rotation: bool = True  # the correction includes a rotation (alignment_plan)
 
     @property
     def j_noise(self) -> float:
@@ -134,7 +209,9 @@ class ResidualSpace:
     def align_pose(self, model: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The model's pose channels after the weighted least-squares SE(2) correction of its
         initial pose (translation + rotation about its first pose sample), estimated on the
-        first ``ALIGN_WINDOW`` s of the run.
+        first ``align_until`` s of the run (``ALIGN_WINDOW``, longer when that holds fewer than
+        ``ALIGN_MIN_SAMPLES`` pose samples: :func:`alignment_plan`); the rotation only when
+        ``align_rotation`` (the window determines it well enough for the whole run).
 
         The measured initial pose the replay starts from is itself noisy (a few reference
         samples); the correction treats it as a nuisance parameter.  Only the start of the run
@@ -146,30 +223,17 @@ class ResidualSpace:
         mx, my = np.asarray(model["ref_x"], float), np.asarray(model["ref_y"], float)
         if mx.size != self.meas["ref_x"].size or my.size != self.meas["ref_y"].size or mx.size < 3:
             return dict(model)
-        px, py = mx[0], my[0]
-        rows, rhs, wts = [], [], []
-        n = mx.size
-        rows.append(np.column_stack([np.ones(n), np.zeros(n), -(my - py)]))
-        rhs.append(self.meas["ref_x"] - mx)
-        wts.append(np.full(n, 1.0 / self.sigma["ref_x"]))
-        rows.append(np.column_stack([np.zeros(n), np.ones(n), mx - px]))
-        rhs.append(self.meas["ref_y"] - my)
-        wts.append(np.full(n, 1.0 / self.sigma["ref_y"]))
         has_yaw = "ref_yaw" in self.channels and "ref_yaw" in model
-        if has_yaw:
-            k = self.meas["ref_yaw"].size
-            rows.append(np.column_stack([np.zeros(k), np.zeros(k), np.ones(k)]))
-            rhs.append(angle_diff(self.meas["ref_yaw"], np.asarray(model["ref_yaw"], float)))
-            wts.append(np.full(k, 1.0 / self.sigma["ref_yaw"]))
-        A = np.vstack(rows) * np.concatenate(wts)[:, None]
-        b = np.concatenate(rhs) * np.concatenate(wts)
-        tt = [self.t["ref_x"], self.t["ref_y"]] + ([self.t["ref_yaw"]] if has_yaw else [])
-        t0 = min(float(x[0]) for x in tt)
-        early = np.concatenate(tt) <= t0 + ALIGN_WINDOW
-        ok = np.isfinite(b) & np.isfinite(A).all(axis=1) & early
+        A, b = _alignment_system(self, mx, my, np.asarray(model["ref_yaw"], float) if has_yaw else None)
+        if not self.align_rotation:
+            A, b = A[:, :2], b
+        ok = np.isfinite(b) & np.isfinite(A).all(axis=1) & (np.abs(A).sum(axis=1) > 0)
         if ok.sum() < 3:
             return dict(model)
-        dx, dy, dpsi = np.linalg.lstsq(A[ok], b[ok], rcond=None)[0]
+        sol = np.linalg.lstsq(A[ok], b[ok], rcond=None)[0]
+        dx, dy = sol[0], sol[1]
+        dpsi = sol[2] if self.align_rotation else 0.0
+        px, py = mx[0], my[0]
         c, s = np.cos(dpsi), np.sin(dpsi)
         out = dict(model)
         out["ref_x"] = px + dx + c * (mx - px) - s * (my - py)
@@ -228,6 +292,63 @@ class ResidualSpace:
         return {c: float(np.nanmean((r[c] / self.sigma[c]) ** 2)) for c in self.channels}
 
 
+def _alignment_system(space: "ResidualSpace", mx: np.ndarray, my: np.ndarray, myaw: np.ndarray | None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted linearised SE(2) system ``A (dx, dy, dpsi) = b`` of the pose samples up to
+    ``space.align_until`` (rows of later samples zero), for model poses ``mx, my, myaw``."""
+    px, py = mx[0], my[0]
+    n = mx.size
+    rows = [np.column_stack([np.ones(n), np.zeros(n), -(my - py)]),
+            np.column_stack([np.zeros(n), np.ones(n), mx - px])]
+    rhs = [space.meas["ref_x"] - mx, space.meas["ref_y"] - my]
+    wts = [np.full(n, 1.0 / space.sigma["ref_x"]), np.full(n, 1.0 / space.sigma["ref_y"])]
+    tt = [space.t["ref_x"], space.t["ref_y"]]
+    if myaw is not None:
+        k = space.meas["ref_yaw"].size
+        rows.append(np.column_stack([np.zeros(k), np.zeros(k), np.ones(k)]))
+        rhs.append(angle_diff(space.meas["ref_yaw"], myaw))
+        wts.append(np.full(k, 1.0 / space.sigma["ref_yaw"]))
+        tt.append(space.t["ref_yaw"])
+    early = (np.concatenate(tt) <= space.align_until)[:, None]
+    w = np.concatenate(wts)
+    return np.vstack(rows) * w[:, None] * early, np.concatenate(rhs) * w * early[:, 0]
+
+
+def alignment_plan(t: Mapping[str, np.ndarray], meas: Mapping[str, np.ndarray], sigma: Mapping[str, float]
+                   ) -> tuple[float, bool]:
+    """(``align_until``, ``align_rotation``) of the initial-pose correction, from the measured poses.
+
+    Window: the first ``ALIGN_WINDOW`` s, extended until it holds ``ALIGN_MIN_SAMPLES`` samples of
+    ``ref_x`` (a 5 Hz DGPS has 6 in the first second: an offset fitted on them is off by 0.4 of its
+    noise for the rest of the run).  Rotation: fitted only when the window determines it: its
+    standard error times the largest distance the run travels from its first pose is at most
+    ``ALIGN_RESOLUTION`` x the position noise.  Otherwise a rotation fitted on a few heading samples
+    turns the whole trajectory by its error (5 Hz DGPS, 0.005 rad heading noise, 50 m: a false
+    pose gap of several sigma) and the model keeps the initial heading of the replay
+    (:func:`bench.gap.model.initial_state`)."""
+    if "ref_x" not in t or "ref_y" not in t or t["ref_x"].size < 3:
+        return ALIGN_WINDOW, True
+    tx = t["ref_x"]
+    t0 = float(min(tx[0], t["ref_y"][0]))
+    k = min(ALIGN_MIN_SAMPLES, tx.size) - 1
+    until = max(t0 + ALIGN_WINDOW, float(tx[k]))
+    space = ResidualSpace(tuple(c for c in ("ref_x", "ref_y", "ref_yaw") if c in t), t, meas, sigma, sigma,
+                          {}, {}, (), (), align_until=until)
+    mx, my = np.asarray(meas["ref_x"], float), np.asarray(meas["ref_y"], float)
+    if mx.size != my.size:
+        return until, True
+    A, _ = _alignment_system(space, mx, my, np.asarray(meas["ref_yaw"], float) if "ref_yaw" in t else None)
+    A = A[np.isfinite(A).all(axis=1)]
+    try:
+        cov = np.linalg.inv(A.T @ A)
+        sd_psi = math.sqrt(max(float(cov[2, 2]), 0.0))
+    except np.linalg.LinAlgError:
+        sd_psi = math.inf
+    lever = float(np.nanmax(np.hypot(mx - mx[0], my - my[0])))
+    pos_sigma = min(sigma["ref_x"], sigma["ref_y"])
+    return until, bool(lever * sd_psi <= ALIGN_RESOLUTION * pos_sigma)
+
+
 def build_space(run: Run, regimes_fn, block: float = 2.0, channels: tuple[str, ...] | None = None,
                 model_channels: frozenset[str] | None = None) -> ResidualSpace:
     """Measured channels, their noise scales, folds (alternating ``block``-s time blocks) and regimes."""
@@ -237,12 +358,13 @@ def build_space(run: Run, regimes_fn, block: float = 2.0, channels: tuple[str, .
     chans = tuple(c for c in wanted if c not in missing)
     t = {c: meas[c][0] for c in chans}
     vals = {c: meas[c][1] for c in chans}
-    sh = {c: noise_scale(vals[c]) for c in chans}
+    sh = {c: max(noise_scale(vals[c]), quantisation_noise(c, vals[c])) for c in chans}
     sig = {c: max(sh[c], FLOORS[c]) for c in chans}
     w = {c: CHANNELS[c][1] for c in chans}
     names, label_fn = regimes_fn(run)
     reg = {c: label_fn(t[c]) for c in chans}
-    return ResidualSpace(chans, t, vals, sh, sig, w, reg, tuple(names), missing, block)
+    until, rotation = alignment_plan(t, vals, sig)
+    return ResidualSpace(chans, t, vals, sh, sig, w, reg, tuple(names), missing, block, until, rotation)
 
 
 def gap_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:

@@ -1,0 +1,232 @@
+"""Blind tests of the gap workflow for the defects reported from blind testing (one class each).
+
+Every test here failed before its fix.  Data: the testbed with the ``gap_blind_*`` scenarios (other
+platforms, terrains, commands and sensors than the development scenarios the selection thresholds
+were chosen on, ``bench/gap/dev.py``, and than ``tests/test_gap_hidden.py``), seeds >= 300 and
+magnitudes of their own.
+
+1. Start from rest with a step command or a hard launch: the replay started moving at the speed of
+   the first encoder samples (a torque gap of ~0.3 N m in the first 0.5 s, "unexplained").
+2. Quantised encoders at a constant speed: the noise scale collapsed to its floor (false excess).
+3. A 5 Hz DGPS reference: the pose alignment fitted a rotation on 6 samples (false pose gap); held
+   (zero-order-hold) reference samples counted as samples.
+4. Significance per sample: a small gyro bias over 5,000 samples (~40 sigma in total) was "no
+   significant missing effect".
+5. Relative-only "unexplained" test: a wrong pair of effects explaining 89 % of a large gap but
+   leaving ~80 x the noise was named; no detection limit was reported with "no significant".
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from bench.gap import find_gap
+from bench.gap.model import replay_scenario
+from bench.spec import load_scenario
+
+STEP, LAUNCH, CRUISE, DGPS, PATROL, TURNS = ("gap_blind_step", "gap_blind_launch", "gap_blind_cruise",
+                                             "gap_blind_dgps", "gap_blind_patrol", "gap_blind_turns")
+NONE = "no significant missing effect"
+
+
+def _ov(hidden: dict) -> dict:
+    return {k.replace(".", "__"): v for k, v in hidden.items()}
+
+
+# ------------------------------------------------------------------ 1. start from rest
+@pytest.mark.parametrize("scenario,seed", [(STEP, 302), (LAUNCH, 312)])
+def test_start_from_rest_is_replayed_from_rest_and_blames_nothing(sim, scenario, seed):
+    """A step command at t = 0 (no ramp) and a 2.5 m/s^2 launch, both from rest, no hidden effect: the
+    replay starts at rest (the first encoder samples, mean speeds after t0, read 0.03-0.15 m/s), the drive
+    torques replay exactly (they replayed 22-34 noise scales off) and nothing is blamed."""
+    measured = sim(scenario, seed)
+    _, init = replay_scenario(measured.without_truth(), load_scenario(scenario))
+    assert init.speed == 0.0
+    res = find_gap(measured, scenario)
+    assert res.gap_before["tau_l"]["rms"] < 0.01 and res.gap_before["tau_r"]["rms"] < 0.01, res.gap_before["tau_l"]
+    assert res.verdict == NONE and res.effects == [] and res.partial == [], res.verdict
+
+
+def test_a_moving_start_stays_moving(sim):
+    """The guard the fix must not break: a run that starts moving (Yu's ramp, 0.49 m/s at t = 0) is replayed
+    moving, at the encoders' speed."""
+    measured = sim("ramp_wood_15", 300).without_truth()
+    _, init = replay_scenario(measured, load_scenario("ramp_wood_15"))
+    assert init.speed == pytest.approx(0.49, rel=0.1)
+
+
+@pytest.mark.slow
+def test_payload_hidden_behind_a_step_start_is_named(sim):
+    """A hidden payload (7 kg) in the step-from-rest scenario: named and fitted, not confused with the start."""
+    res = find_gap(sim(STEP, 303, **_ov({"platform.payload": 7.0})), STEP)
+    assert res.verdict_kind == "missing_effect" and res.named[0] == "payload", res.verdict
+    assert res.effects[0]["parameters"]["payload"] == pytest.approx(7.0, rel=0.2)
+
+
+# ------------------------------------------------------------------ 2. quantised encoders
+def test_quantised_encoders_at_constant_speed_show_no_false_excess(sim):
+    """9 s at 40.05 encoder counts per sample: the count difference is the same on most samples (the MAD of
+    second differences is 0), yet the residual against the noise-free model is the quantisation error,
+    sqrt(f (1 - f)) q = 0.22 q.  The noise scale is at least the quantisation's (q / 2 for a count difference),
+    so the encoders show no excess (they showed 3.7 x the floor) and nothing is blamed."""
+    scn = load_scenario(CRUISE)
+    enc = scn.platform.sensors.encoder
+    q = 2 * math.pi / enc.counts_per_rev * enc.rate_hz
+    res = find_gap(sim(CRUISE, 322), CRUISE)
+    for c in ("enc_wl", "enc_wr"):
+        assert res.gap_before[c]["noise"] >= 0.5 * q * (1 - 1e-9), res.gap_before[c]
+        assert res.gap_before[c]["normalised_rms"] <= 1.0, res.gap_before[c]
+    assert res.verdict == NONE, res.verdict
+
+
+def test_quantisation_step_of_a_lattice_and_of_a_float_signal():
+    """Independent expectation: count differences at a constant 40.3 counts per sample (a step q, rounding
+    noise of n q / T) give q back; white noise on floats gives 0 (not quantised); the noise scale of the
+    lattice is q / 2 >= its actual residual RMS sqrt(0.3 x 0.7) q."""
+    from bench.gap.residuals import quantisation_noise, quantisation_step
+
+    q = 2 * math.pi / 8192 * 100.0
+    counts = np.floor(40.3 * np.arange(2000) + 0.37)
+    v = np.diff(counts) * (2 * math.pi / 8192) / 0.01
+    assert quantisation_step(v) == pytest.approx(q, rel=1e-9)
+    assert quantisation_noise("enc_wl", v) == pytest.approx(q / 2, rel=1e-9)
+    assert quantisation_noise("enc_wl", v) >= np.std(v - 40.3 * q)
+    rng = np.random.default_rng(0)
+    assert quantisation_step(rng.normal(1.0, 0.01, 2000)) == 0.0
+
+
+# ------------------------------------------------------------------ 3. low-rate reference
+@pytest.mark.parametrize("seed", [343, 345])
+def test_dgps_at_5hz_leaves_no_false_pose_gap(sim, seed):
+    """DUBHE with its 5 Hz DGPS (1 cm, 0.005 rad), 24 s and ~45 m: a rotation fitted on the 6 samples of the
+    first second turned the model trajectory by its error (2-4 mrad: pose gaps of 2-4.5 noise scales,
+    "unexplained residual").  Now the alignment uses >= 20 samples and fits the rotation only where they
+    determine it."""
+    res = find_gap(sim(DGPS, seed), DGPS)
+    for c in ("ref_x", "ref_y"):
+        assert res.gap_before[c]["normalised_rms"] < 1.3, (c, res.gap_before[c])
+    assert res.verdict == NONE, res.verdict
+
+
+def test_held_reference_samples_are_not_samples(sim):
+    """The same 5 Hz DGPS logged at the 100 Hz rows with each pose held until the next (as the DRIVE table
+    holds its lidar poses): only the reported poses count, so the result is the one of the unheld log
+    (before, the held staircase's noise scale collapsed to the floor: a false gap of ~5 noise scales)."""
+    from bench.gap.regimes import regimes_for
+    from bench.gap.residuals import build_space
+
+    run = sim(DGPS, 344)
+    d = run.data.copy()
+    for c in ("ref_x", "ref_y", "ref_yaw"):
+        d[c] = d[c].ffill()
+    held = type(run)(d, dict(run.meta, run_id="held-dgps"))
+    scn = load_scenario(DGPS)
+    a = build_space(held.without_truth(), regimes_for(scn.platform))
+    b = build_space(run.without_truth(), regimes_for(scn.platform))
+    assert a.meas["ref_x"].size == b.meas["ref_x"].size == int(round(scn.duration * 5)) + 1
+    res_h, res = find_gap(held, DGPS), find_gap(run, DGPS)
+    assert res_h.verdict == res.verdict == NONE, res_h.verdict
+    assert res_h.gap_before["ref_y"]["normalised_rms"] == pytest.approx(res.gap_before["ref_y"]["normalised_rms"],
+                                                                         rel=1e-9)
+
+
+@pytest.mark.slow
+def test_wheel_radius_under_a_5hz_dgps_is_named(sim):
+    """A right tyre 2.5 % small under the 5 Hz DGPS: named, fitted within 20 % of its change, and the pose
+    gap after it is the DGPS noise (the rotation fitted on 6 samples left ~2 noise scales)."""
+    res = find_gap(sim(DGPS, 346, **_ov({"platform.wheel_radius_scale_r": 0.975})), DGPS)
+    assert res.verdict_kind == "missing_effect" and res.named[0] == "wheel_radius", res.verdict
+    assert res.effects[0]["parameters"]["radius_scale_r"] == pytest.approx(0.975, abs=0.2 * 0.025)
+    for c in ("ref_x", "ref_y"):
+        assert res.gap_after[c]["normalised_rms"] < 1.3, (c, res.gap_after[c])
+
+
+# ------------------------------------------------------------------ 4. significance per log
+def test_small_gyro_bias_over_a_long_log_is_named(sim):
+    """A gyro bias of 0.0011 rad/s (0.55 x the gyro noise per sample, ~39 sigma over the 5,000 samples of
+    40 s) gains 0.06 J_noise, below the per-sample threshold: it was "no significant missing effect".  The
+    whole-log test names it, fitted within 3 standard errors, and the fit is at the noise floor."""
+    b = 0.0011
+    res = find_gap(sim(PATROL, 342, **_ov({"platform.sensors.imu.gyro_bias_z": b})), PATROL)
+    assert res.verdict_kind == "missing_effect" and res.named == ["gyro_bias"], res.verdict
+    e = res.effects[0]
+    assert abs(e["parameters"]["gyro_bias_z"] - b) <= 3 * e["uncertainty"]["gyro_bias_z"] < 0.3 * b
+    assert res.fit["verdict"] == "at the noise floor", res.fit
+
+
+@pytest.mark.slow
+def test_small_encoder_scale_over_a_long_log_is_named(sim):
+    """An encoder scale error of 0.8 % on the left (below the 1.2 % per-sample detection limit of the
+    development table) over the 40 s patrol: named."""
+    res = find_gap(sim(PATROL, 344, **_ov({"platform.sensors.encoder.scale_error_l": 0.008})), PATROL)
+    assert res.named[:1] == ["encoder_scale"], res.verdict
+    assert res.effects[0]["parameters"]["scale_error_l"] == pytest.approx(0.008, abs=0.2 * 0.008)
+
+
+# ------------------------------------------------------------------ 5. absolute goodness of fit, detection limits
+def _check_far_above(res, explained: float, left: float):
+    assert res.verdict_kind == "unexplained_residual" and res.effects == [], res.verdict
+    assert len(res.partial) == 2, res.verdict
+    assert res.cost["explained_fraction"] > explained  # the relative test alone let it be named
+    assert res.fit["verdict"] == "far above the noise floor" and res.fit["final_cv_over_noise"] > left, res.fit
+    assert "noise floor" in res.verdict
+
+
+def test_wrong_pair_far_above_the_noise_is_unexplained(sim):
+    """Lateral shear modulus 3 x the longitudinal one (anisotropic tyres: no catalogue effect) in the turns
+    scenario: the best pair (cg offset + wheel radii) explains 89 % of a gap of ~740 J_noise and leaves ~80 x
+    the noise.  It was named; now it is an unexplained residual with the pair as partial candidates."""
+    res = find_gap(sim(TURNS, 352, **_ov({"terrain.shear_modulus_lat_ratio": 3.0})), TURNS)
+    _check_far_above(res, 0.85, 40.0)
+
+
+@pytest.mark.slow
+def test_lateral_friction_pair_far_above_the_noise_is_unexplained(sim):
+    """Lateral friction 0.6 x in the turns scenario: shear displacement + cg offset explain 97.6 % and leave
+    ~20 x the noise (named before)."""
+    res = find_gap(sim(TURNS, 352, **_ov({"terrain.mu_lat_ratio": 0.6})), TURNS)
+    _check_far_above(res, 0.95, 10.0)
+
+
+def test_detection_limit_is_reported_and_is_what_the_data_detect(sim):
+    """Nothing hidden: every applicable effect gets a detection limit.  The gyro bias's is the closed form of
+    the whole-log test for white gyro noise, sqrt(chi2_1(1e-6)) sigma / sqrt(N) (within 15 %); a bias at twice
+    it is then named, one at half of it is not."""
+    from scipy.stats import chi2
+
+    res = find_gap(sim(PATROL, 343), PATROL)
+    assert res.verdict == NONE
+    det = res.detection_limits
+    assert {"gyro_bias", "encoder_scale", "payload", "wheel_radius"} <= set(det)
+    lim = det["gyro_bias"]["limits"]["gyro_bias_z"]
+    t, _ = sim(PATROL, 343).samples("imu_gz")
+    sigma = res.gap_before["imu_gz"]["sigma"]
+    closed = math.sqrt(chi2.isf(1e-6, 1)) * sigma / math.sqrt(t.size)
+    assert lim["change"] == pytest.approx(closed, rel=0.15) and lim["how"] == "whole-log chi2"
+    assert all(v["change"] > 0 for d in det.values() if d["limits"] for v in d["limits"].values())
+    big = find_gap(sim(PATROL, 343, **_ov({"platform.sensors.imu.gyro_bias_z": 2.0 * lim["change"]})), PATROL)
+    small = find_gap(sim(PATROL, 343, **_ov({"platform.sensors.imu.gyro_bias_z": 0.5 * lim["change"]})), PATROL)
+    assert big.named == ["gyro_bias"], big.verdict
+    assert small.verdict == NONE, small.verdict
+
+
+# ------------------------------------------------------------------ null cases
+NULL_SCENARIOS = (LAUNCH, DGPS, PATROL)
+
+
+@pytest.mark.slow
+def test_null_cases_at_most_one_false_name_over_twenty_seeds(sim):
+    """No hidden effect, 20 seeds on each of 3 nominal scenarios that no threshold was chosen on: at most one
+    run names an effect, and at most one says anything but "no significant missing effect" (before the fixes
+    33 of the 60 were "unexplained residual": every hard launch, 13 of the DGPS runs)."""
+    false, verdicts = 0, []
+    for scenario in NULL_SCENARIOS:
+        for seed in range(500, 520):
+            res = find_gap(sim(scenario, seed), scenario)
+            false += bool(res.effects)
+            verdicts.append((scenario, seed, res.verdict))
+    print(f"null cases: {false} false name(s) in {len(verdicts)} runs")
+    assert false <= 1, [v for v in verdicts if v[2] != NONE]
+    assert sum(v[2] != NONE for v in verdicts) <= 1, [v for v in verdicts if v[2] != NONE]
