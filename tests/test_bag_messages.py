@@ -21,7 +21,7 @@ import pytest
 from bench.formats import import_bag
 from bench.run import Run, RunError
 from bench.spec import SpecError, load_platform
-from tests.test_formats import _typestore
+from tests.test_formats import _typestore, ros_header
 
 A, F = 6378137.0, 1 / 298.257223563  # WGS-84
 E2 = F * (2 - F)
@@ -37,15 +37,11 @@ def write(path: Path, ros: int, topics: dict[str, tuple[str, list[tuple[float, d
 
     ts = _typestore(ros)
     T = ts.types
-    Time, Header, Vec = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"], T["geometry_msgs/msg/Vector3"]
+    Vec = T["geometry_msgs/msg/Vector3"]
     Quat, Point = T["geometry_msgs/msg/Quaternion"], T["geometry_msgs/msg/Point"]
 
     def header(t: float) -> Any:
-        ns = int(round(t * 1e9))
-        kw = dict(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id="base_link")
-        if ros == 1:
-            kw["seq"] = 0
-        return Header(**kw)
+        return ros_header(ts, ros, t)
 
     def twist(f: dict[str, Any]) -> Any:
         return T["geometry_msgs/msg/Twist"](linear=Vec(x=f["v"], y=0.0, z=0.0), angular=Vec(x=0.0, y=0.0, z=f["w"]))

@@ -31,6 +31,17 @@ def _typestore(ros: int):
     return get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
 
 
+def ros_header(ts: Any, ros: int, t: float) -> Any:
+    """A std_msgs/Header stamped ``t`` [s] in frame base_link (ROS 1 headers also carry seq)."""
+    T = ts.types
+    ns = int(round(t * 1e9))
+    kw = dict(stamp=T["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000),
+              frame_id="base_link")
+    if ros == 1:
+        kw["seq"] = 0
+    return T["std_msgs/msg/Header"](**kw)
+
+
 def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, list[tuple[float, dict[str, Any]]]]],
               receive_offset: float = 0.0, receive_in_list_order: bool = False) -> Path:
     """Write a bag: ``topics[topic] = (kind, [(stamp_s, fields), ...])`` with kind in
@@ -42,7 +53,6 @@ def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, list[tuple[floa
 
     ts = _typestore(ros)
     T = ts.types
-    Time, Header = T["builtin_interfaces/msg/Time"], T["std_msgs/msg/Header"]
     Vec, Quat, Point = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"], T["geometry_msgs/msg/Point"]
     Pose, PoseCov = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/PoseWithCovariance"]
     Twist, TwistCov = T["geometry_msgs/msg/Twist"], T["geometry_msgs/msg/TwistWithCovariance"]
@@ -50,11 +60,7 @@ def write_bag(path: Path, ros: int, topics: dict[str, tuple[str, list[tuple[floa
              "odom": "nav_msgs/msg/Odometry", "pose": "geometry_msgs/msg/PoseStamped"}
 
     def header(t: float) -> Any:
-        ns = int(round(t * 1e9))
-        kw = dict(stamp=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), frame_id="base_link")
-        if ros == 1:
-            kw["seq"] = 0
-        return Header(**kw)
+        return ros_header(ts, ros, t)
 
     def quat(yaw: float) -> Any:
         return Quat(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))

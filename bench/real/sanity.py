@@ -155,19 +155,19 @@ def _held_samples(a: np.ndarray) -> np.ndarray:
     return np.argmin(same[:, ::-1], axis=1) + same.all(axis=1) * same.shape[1]
 
 
-def _stale(w: DriveWindows) -> np.ndarray:
+def _stale(w: DriveWindows, rates: Finding | None = None) -> np.ndarray:
     """Windows whose reference pose at the last sample has been held longer than the reference's own update interval
     (a 10 Hz ICP in a 20 Hz table holds every other sample: that is its rate, not a stale pose)."""
     held = np.minimum(_held_samples(w["ref_x"]), _held_samples(w["ref_y"]))
-    rate = _update_rate(w).values.get("ref_x", 1.0 / w.dt)
+    rate = (rates or _update_rate(w)).values.get("ref_x", 1.0 / w.dt)
     normal = max(0, int(math.ceil(1.0 / (w.dt * rate) - 1e-9)) - 1)
     return held > normal
 
 
-def _stale_reference(w: DriveWindows) -> Finding | None:
+def _stale_reference(w: DriveWindows, rates: Finding | None = None) -> Finding | None:
     if not (w.has("ref_x") and w.has("ref_y")) or w.n_samples < 2:
         return None
-    stale = _stale(w)
+    stale = _stale(w, rates)
     share = float(stale.mean())
     values = {"share": share, "n": float(stale.sum())}
     text = (f"{int(stale.sum())} of {w.n_windows} windows ({100 * share:.0f} %) end on a reference pose held longer "
@@ -220,7 +220,8 @@ def _command_lag(w: DriveWindows) -> Finding | None:
 
 def check_windows(w: DriveWindows) -> list[Finding]:
     """Every check that the table's channels allow (see the module docstring)."""
-    found = [_gyro_sign(w), _imu_offset(w), _update_rate(w), _stale_reference(w), _command_lag(w)]
+    rates = _update_rate(w)  # the stale-pose check reads the reference's rate from it
+    found = [_gyro_sign(w), _imu_offset(w), rates, _stale_reference(w, rates), _command_lag(w)]
     return [f for f in found if f is not None]
 
 
