@@ -311,3 +311,96 @@ def test_real_gap_names_the_field_a_platform_toml_lacks(clean, tmp_path, capsys)
     assert main(["real-gap", str(clean[0]), "--platform", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "mass" in err and "bigbot.toml" in err and not (tmp_path / "o").exists()
+
+
+CSV_MAP = """
+run_id = "robot_csv"
+[time]
+column = "t"
+[wheels]
+left = "wl"
+right = "wr"
+[commands]
+left = "cl"
+right = "cr"
+[imu]
+ax = "ax"
+gz = "gz"
+[reference]
+x = "x"
+y = "y"
+yaw = "yaw"
+"""
+
+
+def _csv_of(log: dict, path: Path, kind: str | None = None) -> Path:
+    """The continuous synthetic log as a CSV (20 Hz) with one recording defect of :func:`defect`'s kinds."""
+    n = log["x"].size
+    wl, wr = log["left_wheel_vel"].copy(), log["right_wheel_vel"].copy()
+    ax, gz = log["imu_acceleration_x"].copy(), log["imu_yaw"].copy()
+    if kind == "gyro_sign":
+        gz = -gz
+    elif kind == "imu_offset":
+        ax = ax - 1.1
+    elif kind == "update_rate":  # wheel speeds updating at 4 Hz
+        i = (np.arange(n) // 5) * 5
+        wl, wr = wl[i], wr[i]
+    pd.DataFrame({"t": DRIVE_DT * np.arange(n), "wl": wl, "wr": wr, "cl": log["cmd_left"], "cr": log["cmd_right"],
+                  "ax": ax, "gz": gz, "x": log["x"], "y": log["y"],
+                  "yaw": (log["yaw"] + np.pi) % (2 * np.pi) - np.pi}).to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("kind", [None, "gyro_sign", "imu_offset", "update_rate"])
+def test_import_csv_checks_the_data_and_records_the_findings(tmp_path, capsys, kind):
+    from bench.run import Run
+
+    log = _log(n_steps=12)
+    csv = _csv_of(log, tmp_path / "log.csv", kind)
+    (tmp_path / "map.toml").write_text(CSV_MAP)
+    out_path = tmp_path / "run.parquet"
+    assert main(["import-csv", str(csv), "--map", str(tmp_path / "map.toml"), "-o", str(out_path)]) == 0
+    out = capsys.readouterr().out
+    run = Run.from_parquet(out_path)
+    bad = [f["check"] for f in run.meta["sanity"]["findings"] if not f["ok"]]
+    assert bad == ([] if kind is None else [kind])
+    assert ("warning:" in out) == (kind is not None)
+    if kind:
+        assert f"{csv}: {kind}:" in out
+
+
+def test_import_csv_fixes_a_flipped_gyro_and_an_imu_offset_on_the_samples(tmp_path, capsys):
+    from bench.run import Run
+
+    log = _log(n_steps=12)
+    (tmp_path / "map.toml").write_text(CSV_MAP)
+    csv = _csv_of(log, tmp_path / "log.csv", "gyro_sign")
+    df = pd.read_csv(csv)
+    df["ax"] -= 1.1
+    df.to_csv(csv, index=False)
+    out_path = tmp_path / "run.parquet"
+    assert main(["import-csv", str(csv), "--map", str(tmp_path / "map.toml"), "-o", str(out_path),
+                 "--fix", "flip_gyro", "--fix", "imu_offset"]) == 0
+    run = Run.from_parquet(out_path)
+    s = run.meta["sanity"]
+    assert sorted(f["check"] for f in s["findings"] if not f["ok"]) == ["gyro_sign", "imu_offset"]
+    assert [f["check"] for f in s["after"] if not f["ok"]] == []
+    assert s["fixes"][0] == "flip_gyro: imu_gz multiplied by -1"
+    # the gyro back to the truth's sign; the accelerometer's -1.1 m/s^2 removed (the synthetic log's own steady
+    # mean is the derivative of a constant speed plus zero-mean noise: 0 within the noise over the steady windows)
+    off = s["offsets"]
+    np.testing.assert_allclose(run.data["imu_gz"].to_numpy() + off["imu_gz"], log["imu_yaw"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(run.data["imu_ax"].to_numpy() + off["imu_ax"], log["imu_acceleration_x"] - 1.1,
+                               rtol=0, atol=1e-12)
+    assert off["imu_ax"] == pytest.approx(-1.1, abs=0.02) and abs(off["imu_gz"]) < 0.002
+
+
+def test_import_csv_refuses_drop_stale_with_one_line(tmp_path, capsys):
+    log = _log(n_steps=6)
+    (tmp_path / "map.toml").write_text(CSV_MAP)
+    csv = _csv_of(log, tmp_path / "log.csv")
+    assert main(["import-csv", str(csv), "--map", str(tmp_path / "map.toml"), "-o", str(tmp_path / "r.parquet"),
+                 "--fix", "drop_stale"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "drop_stale" in err[0] and "skidbench real" in err[0]
+    assert not (tmp_path / "r.parquet").exists()

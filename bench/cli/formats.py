@@ -26,17 +26,23 @@ def _drive_args(p: argparse.ArgumentParser) -> None:
                    help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
 
 
+def _print_sanity(where: Path, sanity: dict) -> None:
+    """The data sanity warnings (bench.real.sanity) and the corrections applied, one line each."""
+    if sanity.get("skipped"):
+        print(f"{where}: sanity checks skipped: {sanity['skipped']}")
+    for f in sanity["findings"]:
+        if not f["ok"]:
+            print(f"warning: {where}: {f['check']}: {f['evidence']}"
+                  + (f" (--fix {f['fix']} corrects it)" if f["fix"] else ""))
+    for line in sanity["fixes"]:
+        print(f"{where}: corrected: {line}")
+
+
 def _import_drive(a: argparse.Namespace) -> int:
     from bench.real.drive import import_drive
 
     runs = import_drive(a.table, a.platform, a.wheel_radius, a.track, fixes=a.fix)
-    sanity = runs[0].meta["sanity"] if runs else {"findings": [], "fixes": []}
-    for f in sanity["findings"]:  # recorded in every run's metadata (meta["sanity"])
-        if not f["ok"]:
-            print(f"warning: {a.table}: {f['check']}: {f['evidence']}"
-                  + (f" (--fix {f['fix']} corrects it)" if f["fix"] else ""))
-    for line in sanity["fixes"]:
-        print(f"{a.table}: corrected: {line}")
+    _print_sanity(a.table, runs[0].meta["sanity"] if runs else {"findings": [], "fixes": []})
     for r in runs:
         r.to_parquet(a.output / f"step{r.meta['calib_step']:03d}.parquet")
     print(f"wrote {len(runs)} runs to {a.output}")
@@ -76,12 +82,16 @@ def _imp_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("log", type=Path)
     p.add_argument("--map", dest="mapping", type=Path, required=True, help="mapping TOML (columns/topics, units)")
     p.add_argument("-o", "--output", type=Path, required=True)
+    p.add_argument("--fix", action="append", default=[], metavar="NAME",
+                   help="apply a sanity check's correction to the samples: flip_gyro, imu_offset (repeatable)")
 
 
 def _import_csv(a: argparse.Namespace) -> int:
     from bench.formats import import_csv
+    from bench.real.run_sanity import check_run
 
-    run = import_csv(a.log, a.mapping)
+    run = check_run(import_csv(a.log, a.mapping), a.fix)  # findings in the run's metadata (meta["sanity"])
+    _print_sanity(a.log, run.meta["sanity"])
     run.to_parquet(a.output)
     print(f"wrote {a.output} ({len(run.data)} rows)")
     return 0
@@ -89,8 +99,10 @@ def _import_csv(a: argparse.Namespace) -> int:
 
 def _import_bag(a: argparse.Namespace) -> int:
     from bench.formats import import_bag
+    from bench.real.run_sanity import check_run
 
-    run = import_bag(a.log, a.mapping)
+    run = check_run(import_bag(a.log, a.mapping), a.fix)  # findings in the run's metadata (meta["sanity"])
+    _print_sanity(a.log, run.meta["sanity"])
     run.to_parquet(a.output)
     print(f"wrote {a.output} ({len(run.data)} rows)")
     return 0
