@@ -29,7 +29,10 @@ def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # se
         print(f"real: skipped, no data at {table} (set SKIDBENCH_DATA to the folder holding drive_husky/)")
         return
     res = run_real_benchmark(table, results_dir / "real", models=every_window_plugin())
-    print(f"real: {write_real_league(data_root(), results_dir / 'real', done={table: res})}")
+    from bench.reproduce.publish import final_dir
+
+    league = write_real_league(data_root(), results_dir / "real", done={table: res})
+    print(f"real: {final_dir(results_dir) / 'real' / Path(league).name}")  # where it is published, not staged
     v = res["verdict"]
     print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
           f"{v['ideal_dd_median_trans']:.3f} m ({res['runtime_s']:.1f} s)")
