@@ -29,6 +29,7 @@ class SpecError(ValueError):
 _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
     "slope_deg": ("slope", math.radians),
     "initial_yaw_deg": ("initial_yaw", math.radians),
+    "soil_friction_angle_deg": ("soil_friction_angle", math.radians),
 }
 
 

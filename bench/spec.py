@@ -282,10 +282,24 @@ class Terrain:
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
     friction_patches: tuple[FrictionPatch, ...] = ()
+    # deformable soil (bench/sim/soil.py): "rigid" = none (the soil fields are unused), "bekker" = Bekker
+    # sinkage, compaction resistance and the Janosi-Hanamoto shear-strength limit c A + W tan(phi)
+    soil_model: str = "rigid"
+    soil_n: float = 1.0  # Bekker sinkage exponent n
+    soil_k_c: float = 0.0  # Bekker k_c [N/m^(n+1)]
+    soil_k_phi: float = 0.0  # Bekker k_phi [N/m^(n+2)]
+    soil_cohesion: float = 0.0  # c [Pa]
+    soil_friction_angle: float = 0.0  # phi [rad], from soil_friction_angle_deg in files
     source: str = ""
     sources: Sources = field(default_factory=Sources, compare=False, repr=False)  # as Platform.sources
 
     _checks = {
+        "soil_model": (lambda x: x in ("rigid", "bekker"), "'rigid' or 'bekker'"),
+        "soil_n": (lambda x: 0 < x < 1.5, "in (0, 1.5)"),
+        "soil_k_c": (_nonneg, ">= 0 N/m^(n+1)"),
+        "soil_k_phi": (_nonneg, ">= 0 N/m^(n+2)"),
+        "soil_cohesion": (_nonneg, ">= 0 Pa"),
+        "soil_friction_angle": (lambda x: 0 <= x < math.radians(60), "in [0, 60) deg"),
         "model": (lambda x: x in ("coulomb", "janosi"), "'coulomb' or 'janosi'"),
         "mu_sa": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_op": (lambda x: 0 < x < 3, "in (0, 3)"),

@@ -36,6 +36,8 @@ typedef struct {
     double pid_kp, pid_ki, pid_kd, pid_scale;  /* SidePid */
     double m_gear, m_KB, m_KT, m_Ra, m_imax, m_pmax, m_slope_free, m_k;  /* motor_law */
     int janosi, pid_every, pid_adds_slope;
+    int soil;  /* Bekker soil force model (bench/sim/soil.py), set by set_soil; 0 = rigid ground */
+    double soil_z_coef, soil_z_exp, soil_rc_coef, soil_n1, soil_tan_phi, soil_ca_coef;
     long n_steps;
     Patch *patches;
     Py_ssize_t n_patches;
@@ -197,6 +199,15 @@ static PyObject *Kernel_set_motor(Kernel *self, PyObject *args) {
     if (!PyArg_ParseTuple(args, "ddddddddd", &self->m_gear, &self->m_KB, &self->m_KT, &self->m_Ra, &self->m_imax,
                           &self->m_pmax, &self->m_slope_free, &self->m_k, &self->pid_scale))
         return NULL;
+    Py_RETURN_NONE;
+}
+
+/* set_soil(z_coef, z_exp, rc_coef, n + 1, tan_phi, ca_coef): bench.sim.soil.soil_constants; switches the soil on */
+static PyObject *Kernel_set_soil(Kernel *self, PyObject *args) {
+    if (!PyArg_ParseTuple(args, "dddddd", &self->soil_z_coef, &self->soil_z_exp, &self->soil_rc_coef, &self->soil_n1,
+                          &self->soil_tan_phi, &self->soil_ca_coef))
+        return NULL;
+    self->soil = 1;
     Py_RETURN_NONE;
 }
 
@@ -382,7 +393,7 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
         double mu_base = self->mu_op + (self->mu_sa - self->mu_op) * drive;
         double rr = self->r_eff[s];
         double u = rr * ws;
-        double f_lon_sum = 0.0, stiff_sum = 0.0, n_side = 0.0;
+        double f_lon_sum = 0.0, stiff_sum = 0.0, n_side = 0.0, rc_side = 0.0;
         double sx = 0.0, sy = 0.0, sz = 0.0, smx = 0.0, smy = 0.0, smz = 0.0;
         for (int i = 2 * s; i < 2 * s + 2; i++) {
             double nf = normal[i];
@@ -406,6 +417,11 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             double v_lon = vcx * ex + vcy * ey + vcz * ez;
             double v_lat = vcx * lx + vcy * ly + vcz * lz;
             double mu = mu_base;
+            if (self->soil) {  /* Bekker sinkage under the current load; shear strength c A + W tan phi */
+                double z = self->soil_z_coef * pow(nf, self->soil_z_exp);
+                rc_side += self->soil_rc_coef * pow(z, self->soil_n1);
+                mu = self->soil_tan_phi + self->soil_ca_coef * sqrt(z) / nf;
+            }
             for (Py_ssize_t q = 0; q < self->n_patches; q++) {
                 const Patch *fp = &self->patches[q];
                 if (fp->x_min <= cx && cx <= fp->x_max && fp->y_min <= cy_ && cy_ <= fp->y_max) {
@@ -457,6 +473,7 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
         }
         double sgn = tanh(u / 0.01);
         double roll = self->mu_roll * n_side * rr;
+        if (self->soil) roll = (self->mu_roll * n_side + rc_side) * rr;  /* + Bekker compaction resistance */
         double t_roll = roll * sgn;
         double dt_roll = roll * (1 - sgn * sgn) * rr / 0.01;
         double num = tq - rr * f_lon_sum - t_roll;
@@ -506,6 +523,7 @@ static PyObject *Kernel_log(Kernel *self, PyObject *Py_UNUSED(ignored)) {
 
 static PyMethodDef Kernel_methods[] = {
     {"set_motor", (PyCFunction)Kernel_set_motor, METH_VARARGS, "motor-line and PID-scale constants"},
+    {"set_soil", (PyCFunction)Kernel_set_soil, METH_VARARGS, "Bekker soil constants (switches the soil on)"},
     {"set_side", (PyCFunction)Kernel_set_side, METH_VARARGS, "initial-speed preload of one side"},
     {"step", (PyCFunction)(void (*)(void))Kernel_step, METH_FASTCALL, "one physics step's forces, and its log row"},
     {"log", (PyCFunction)Kernel_log, METH_NOARGS, "the logged rows as float64 bytes"},

@@ -39,6 +39,7 @@ import numpy as np
 
 from bench.sim.commands import wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
+from bench.sim.soil import soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_law
 from bench.spec import Scenario
 
@@ -315,6 +316,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
         patches = terr.friction_patches
         mu_sa, mu_op = terr.mu_sa, terr.mu_op
+        soil = terr.soil_model == "bekker"  # bench/sim/soil.py: a force model, the contact geometry stays rigid
+        if soil:
+            z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef = soil_constants(
+                plat.wheel_radius, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi,
+                terr.soil_cohesion, terr.soil_friction_angle)
         v_max, i_max = motor.v_max, motor.i_max
         lim = accel_w * dt
         # PID sampling: every physics step when the platform's rate is at least the physics rate
@@ -344,6 +350,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 [(fp.x_min, fp.x_max, fp.y_min, fp.y_max, fp.mu_scale, fp.t_period) for fp in patches],
                 ref_l, ref_r, math.hypot)
             kern.set_motor(*motor_line_constants(motor), plat.pid.gain_scale)
+            if soil:
+                kern.set_soil(z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef)
             return PhysicsTrace(_kernel_loop(kern, scn, motor, pid, r_eff, robot, cid, n_settle, n_steps, progress), cg)
         # the log is one flat list of floats: floats are not tracked by the cyclic GC, so the loop
         # allocates no lasting GC-tracked object (a list of row tuples triggered a collection
@@ -407,6 +415,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 f_lon_sum = 0.0
                 stiff_sum = 0.0
                 n_side = 0.0
+                rc_side = 0.0
                 # stiffness-weighted wheel directions and moments: the force correction for the
                 # new wheel speed is rr * dw * (these sums), applied after the side's update
                 sx = sy = sz = smx = smy = smz = 0.0
@@ -428,6 +437,10 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     v_lon = vcx * ex + vcy * ey + vcz * ez
                     v_lat = vcx * lx + vcy * ly + vcz * lz
                     mu = mu_base
+                    if soil:  # Bekker sinkage under the current load; shear strength c A + W tan phi
+                        z = z_coef * nf ** z_exp
+                        rc_side += rc_coef * z ** n1
+                        mu = tan_phi + ca_coef * math.sqrt(z) / nf
                     if patches:
                         for fp in patches:
                             if fp.x_min <= cx <= fp.x_max and fp.y_min <= cy_ <= fp.y_max:
@@ -476,6 +489,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 # rolling resistance torque on the side's wheels, smooth sign
                 sgn = tanh(u / 0.01)
                 roll = mu_roll * n_side * rr
+                if soil:  # + Bekker compaction resistance
+                    roll = (mu_roll * n_side + rc_side) * rr
                 t_roll = roll * sgn
                 dt_roll = roll * (1 - sgn * sgn) * rr / 0.01
                 num = tq - rr * f_lon_sum - t_roll

@@ -13,6 +13,9 @@ the testbed implements -- never with an outcome that a paper claim then scores:
   m g r sin(theta) (m g r sin(theta) / 4 per wheel);
 * ``locked_wheel_slide``: on a slope steeper than the friction angle (tan(theta) > mu, Coulomb) the robot
   with held wheels slides down at g (sin(theta) - mu cos(theta));
+* ``soil_compaction_straight``: constant speed on Bekker soil (the sand terrain, Wong Table 2.3 dry sand): the
+  wheels' torque balances r (mu_roll m g + sum_i R_c(W_i)), R_c the compaction resistance of Bekker's closed-form
+  sinkage under each wheel's simulated load (Wong Ch. 2, bench/sim/soil.py);
 * ``motor_line_eq26``: the drive's torque at a few voltages and speeds against tau_s (V/V_nom - w_m/w_n),
   clamped at K_T I_max and P_max / w_m.
 
@@ -36,7 +39,8 @@ import numpy as np
 from bench.sim import simulate
 from bench.sim.drive import MotorConstants, motor_law
 from bench.sim.testbed import GRAVITY
-from bench.spec import CommandSpec, Scenario, Segment, load_scenario, replace
+from bench.sim.soil import compaction_resistance, sinkage
+from bench.spec import CommandSpec, Scenario, Segment, load_scenario, load_terrain, replace
 
 WANG_CHI_TABLE3 = (1.4662, 1.4480, 1.4394, 1.4341, 1.4215, 1.4232, 1.4165, 1.4115)  # lambda = 0..7
 
@@ -137,6 +141,22 @@ def _rolling_torque(base: Scenario) -> Check:
                  "force balance at constant speed (Yu 2010 Sec. V: mu_roll from the straight-line torque)")
 
 
+def _soil_compaction(base: Scenario) -> Check:
+    scn = load_scenario("straight_0p2_vinyl")
+    sand = replace(load_terrain("sand"), slope=0.0)
+    d = _steady(simulate(dataclasses.replace(scn, terrain=sand), 0), 3.0)
+    plat, soil = scn.platform, (sand.soil_n, sand.soil_k_c, sand.soil_k_phi)
+    loads = [float(np.nanmean(d[c])) for c in ("truth_n_fl", "truth_n_rl", "truth_n_fr", "truth_n_rr")]
+    r_c = sum(compaction_resistance(sinkage(w, plat.wheel_radius, plat.wheel_width, *soil), plat.wheel_width, *soil)
+              for w in loads)
+    r = plat.wheel_radius * plat.wheel_radius_scale_l
+    expect = r * (sand.rolling_resistance * plat.total_mass * GRAVITY + r_c)
+    got = float(np.nanmean(d["tau_l"]) + np.nanmean(d["tau_r"]))
+    return Check("soil_compaction_straight", _rel(got, expect) < 0.02, round(got, 4),
+                 f"tau_l + tau_r = r (mu_roll m g + sum R_c(W_i)) = {expect:.4f} N m within 2% (R_c {r_c:.3f} N)",
+                 "Bekker rigid-wheel sinkage and compaction resistance (Wong, Theory of Ground Vehicles, Ch. 2)")
+
+
 def _saturated_speed() -> Check:
     scn = load_scenario("straight_1p5_vinyl")
     d = _steady(simulate(scn, 0), scn.duration - 1.0)
@@ -212,7 +232,8 @@ def run_checks(progress: Callable[[str], None] | None = None, quick: bool = Fals
                      ("motor line: saturated straight speed", _saturated_speed),
                      ("static balance: holding torque on 15 deg", _ramp_hold),
                      ("friction limit: locked-wheel slide", _locked_slide),
-                     ("motor line: eq. (26) with its clamps", lambda: _motor_line(base))):
+                     ("motor line: eq. (26) with its clamps", lambda: _motor_line(base)),
+                     ("closed form: Bekker compaction on the straight", lambda: _soil_compaction(base))):
         say(text)
         checks.append(fn())
     return checks
