@@ -282,6 +282,14 @@ class Terrain:
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
     friction_patches: tuple[FrictionPatch, ...] = ()
+    # uneven ground (bench/sim/ground.py): ISO 8608 displacement PSD G_d(n0) [m^3] at n0 = 0.1 cycles/m
+    # (class A 16e-6, B 64e-6, C 256e-6, D 1024e-6, E 4096e-6 ...); 0 = flat (GEOM_PLANE, as before)
+    roughness_gd0: float = 0.0
+    roughness_spacing: float = 0.1  # heightfield grid spacing [m]
+    roughness_length_x: float = 51.2  # heightfield side along x [m], centred at roughness_centre_x
+    roughness_length_y: float = 51.2  # heightfield side along y [m], centred at y = 0
+    roughness_centre_x: float = 0.0  # [m]
+    roughness_seed: int = 0  # seed of the heightfield (a terrain field: the same ground for every sensor seed)
     # deformable soil (bench/sim/soil.py): "rigid" = none (the soil fields are unused), "bekker" = Bekker
     # sinkage, compaction resistance and the Janosi-Hanamoto shear-strength limit c A + W tan(phi)
     soil_model: str = "rigid"
@@ -309,6 +317,12 @@ class Terrain:
         "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
         "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),
         "slip_velocity_eps": (_positive, "> 0"),
+        "roughness_gd0": (lambda x: 0 <= x < 0.1, "in [0, 0.1) m^3 (ISO 8608 G_d(n0))"),
+        "roughness_spacing": (lambda x: 0.01 <= x <= 1.0, "in [0.01, 1] m"),
+        "roughness_length_x": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),
+        "roughness_length_y": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),
+        "roughness_centre_x": (lambda x: abs(x) <= 1000.0, "|x| <= 1000 m"),
+        "roughness_seed": (lambda x: 0 <= x < 2**63, ">= 0"),
     }
 
 

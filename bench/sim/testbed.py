@@ -42,6 +42,7 @@ from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_const
 from bench.sim.soil import soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_law
 from bench.spec import Scenario
+from bench.sim.ground import rough_ground  # after bench.spec: the uneven ground (ISO 8608)
 
 try:  # the C step (built by pip install; the Python loop below is the reference and the fallback)
     from bench.sim import _kernel as KERNEL
@@ -110,9 +111,13 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
     )
     # ground: a plane rising along +x with the terrain slope (ramps of Yu 2010 Figs. 18-20)
     tilt = _quat_about_y(-terr.slope)
-    plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
-    ground = p.createMultiBody(0, plane, -1, (0, 0, 0), tilt, physicsClientId=cid)
-    p.changeDynamics(ground, -1, lateralFriction=1.0, physicsClientId=cid)
+    z0 = 0.0  # ground height under the wheels at the start (0 on the plane)
+    if terr.roughness_gd0 > 0:  # uneven ground: ISO 8608 heightfield tiles (bench/sim/ground.py)
+        ground, z0 = rough_ground(p, cid, terr, plat, scn.initial_yaw)
+    else:
+        plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=cid)
+        ground = p.createMultiBody(0, plane, -1, (0, 0, 0), tilt, physicsClientId=cid)
+        p.changeDynamics(ground, -1, lateralFriction=1.0, physicsClientId=cid)
 
     m_total = plat.total_mass
     m_wheel = 0.02 * m_total
@@ -128,7 +133,7 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
     links = [(a, b, 0.0), (-a, b, 0.0), (a, -b, 0.0), (-a, -b, 0.0)]
     # place on the tilted plane: the link origin r above the surface along its normal
     n = (-math.sin(terr.slope), 0.0, math.cos(terr.slope))  # plane normal after the tilt
-    start = (n[0] * (r + 0.002), 0.0, n[2] * (r + 0.002))
+    start = (n[0] * (r + 0.002), 0.0, n[2] * (r + 0.002) + z0)
     yaw = scn.initial_yaw
     q_yaw = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
     orn = p.multiplyTransforms((0, 0, 0), tilt, (0, 0, 0), q_yaw)[1]

@@ -16,6 +16,8 @@ the testbed implements -- never with an outcome that a paper claim then scores:
 * ``soil_compaction_straight``: constant speed on Bekker soil (the sand terrain, Wong Table 2.3 dry sand): the
   wheels' torque balances r (mu_roll m g + sum_i R_c(W_i)), R_c the compaction resistance of Bekker's closed-form
   sinkage under each wheel's simulated load (Wong Ch. 2, bench/sim/soil.py);
+* ``heightfield_iso8608_psd``: the rough ground's heightfield (bench/sim/ground.py) has the profile PSD of its
+  ISO 8608 class, G_d(n0) (n / n0)^-2 (slope and level of the row periodogram);
 * ``motor_line_eq26``: the drive's torque at a few voltages and speeds against tau_s (V/V_nom - w_m/w_n),
   clamped at K_T I_max and P_max / w_m.
 
@@ -38,8 +40,10 @@ import numpy as np
 
 from bench.sim import simulate
 from bench.sim.drive import MotorConstants, motor_law
+from bench.sim.ground import ISO8608_CLASS_GD0, field_heights, iso8608_psd, profile_psd
 from bench.sim.testbed import GRAVITY
 from bench.sim.soil import compaction_resistance, sinkage
+from bench.paths import SCENARIO_DIR
 from bench.spec import CommandSpec, Scenario, Segment, load_scenario, load_terrain, replace
 
 WANG_CHI_TABLE3 = (1.4662, 1.4480, 1.4394, 1.4341, 1.4215, 1.4232, 1.4165, 1.4115)  # lambda = 0..7
@@ -157,6 +161,31 @@ def _soil_compaction(base: Scenario) -> Check:
                  "Bekker rigid-wheel sinkage and compaction resistance (Wong, Theory of Ground Vehicles, Ch. 2)")
 
 
+def heightfield_psd_fit(terr: Any) -> dict[str, float]:
+    """Fit of the row periodogram of ``terr``'s heightfield (as the testbed builds it, bench/sim/ground.py)
+    over 0.05 cycles/m .. half its Nyquist frequency: the log-log ``slope`` (ISO 8608: -2) and the level
+    ``gd0_ratio`` = G_d(n0) of the fit at slope -2 over the declared G_d(n0) (geometric mean of the ratio)."""
+    h = field_heights(terr.roughness_gd0, terr.roughness_spacing, terr.roughness_length_x, terr.roughness_length_y,
+                      terr.roughness_seed)[:-1, :-1]
+    n, psd = profile_psd(h, terr.roughness_spacing)
+    m = (n >= 0.05) & (n <= 0.25 / terr.roughness_spacing)
+    slope = float(np.polyfit(np.log(n[m]), np.log(psd[m]), 1)[0])
+    ratio = float(np.exp(np.mean(np.log(psd[m] / iso8608_psd(n[m], terr.roughness_gd0)))))
+    return {"slope": round(slope, 3), "gd0_ratio": round(ratio, 3)}
+
+
+def _heightfield_psd() -> Check:
+    """Every terrain file that declares roughness, else (none yet) dirt at ISO 8608 class C: its heightfield's
+    profile PSD against the class's closed form G_d(n0) (n / n0)^-2."""
+    terrains = [load_terrain(f.stem) for f in sorted((SCENARIO_DIR / "terrains").glob("*.toml"))]
+    rough = [t for t in terrains if t.roughness_gd0 > 0] or [replace(load_terrain("dirt"), roughness_gd0=ISO8608_CLASS_GD0["C"])]
+    fits = {t.name: heightfield_psd_fit(t) for t in rough}
+    ok = all(abs(f["slope"] + 2.0) < 0.15 and abs(f["gd0_ratio"] - 1.0) < 0.1 for f in fits.values())
+    return Check("heightfield_iso8608_psd", ok, fits,
+                 "row profiles' PSD slope -2 +- 0.15 and level G_d(n0) within 10% over 0.05 .. Nyquist/2 cycles/m",
+                 "ISO 8608:2016 eq. (1) road-class displacement PSD, n0 = 0.1 cycles/m, w = 2")
+
+
 def _saturated_speed() -> Check:
     scn = load_scenario("straight_1p5_vinyl")
     d = _steady(simulate(scn, 0), scn.duration - 1.0)
@@ -233,7 +262,8 @@ def run_checks(progress: Callable[[str], None] | None = None, quick: bool = Fals
                      ("static balance: holding torque on 15 deg", _ramp_hold),
                      ("friction limit: locked-wheel slide", _locked_slide),
                      ("motor line: eq. (26) with its clamps", lambda: _motor_line(base)),
-                     ("closed form: Bekker compaction on the straight", lambda: _soil_compaction(base))):
+                     ("closed form: Bekker compaction on the straight", lambda: _soil_compaction(base)),
+                     ("closed form: ISO 8608 heightfield PSD", _heightfield_psd)):
         say(text)
         checks.append(fn())
     return checks

@@ -90,3 +90,43 @@ def test_bare_step_simulation(benchmark):
         benchmark.extra_info["us_per_step"] = benchmark.stats["mean"] / n * 1e6
     finally:
         p.disconnect(cid)
+
+
+# rough ground (bench/sim/ground.py): DUBHE's 4 m/s straight (Liu 2020 scenario 1) on an ISO 8608 class C
+# heightfield sized to the 10 s path
+ROUGH = {"duration": DURATION, "terrain.roughness_gd0": 256e-6, "terrain.roughness_length_x": 64.0,
+         "terrain.roughness_centre_x": 25.0, "terrain.roughness_length_y": 12.8}
+
+
+def test_testbed_real_time_factor_rough(benchmark):
+    scn = load_scenario("liu_straight", ROUGH)
+    cpu: list[float] = []
+
+    def run() -> None:
+        c0 = time.process_time()
+        run_physics(scn, 0)
+        cpu.append(time.process_time() - c0)
+
+    benchmark.pedantic(run, rounds=3, iterations=1, warmup_rounds=1)
+    steps = round(DURATION / scn.dt) + round(SETTLE_TIME / scn.dt)
+    cid = p.connect(p.DIRECT)
+    try:
+        _build_world(scn, cid)
+        for _ in range(60):
+            p.stepSimulation(physicsClientId=cid)
+        t0 = time.perf_counter()
+        for _ in range(600):
+            p.stepSimulation(physicsClientId=cid)
+        bare = (time.perf_counter() - t0) / 600 * 1e6
+    finally:
+        p.disconnect(cid)
+    info = benchmark.extra_info
+    info["real_time_factor"] = DURATION / benchmark.stats["mean"]
+    info["real_time_factor_best"] = DURATION / benchmark.stats["min"]
+    info["us_per_step"] = benchmark.stats["min"] / steps * 1e6
+    info["bare_step_us"] = bare
+    info["cpu_real_time_factor"] = DURATION / min(cpu)
+    info["duration"] = DURATION
+    info["dt"] = scn.dt
+    info["platform"] = scn.platform.name
+    info["ground"] = "ISO 8608 class C heightfield"
