@@ -203,6 +203,10 @@ class Platform:
     wheel_radius_scale_l: float = 1.0  # effective rolling radius scale (tire pressure) left
     wheel_radius_scale_r: float = 1.0
     actuator_delay: float = 0.0  # [s] delay between command and PID reference
+    # per-side powertrain lag (DRIVE, Baril et al. 2024): first-order time constant [s] of each side's wheel-speed
+    # reference after the command (0 = none: the command passes bit for bit)
+    powertrain_tau_l: float = 0.0
+    powertrain_tau_r: float = 0.0
     # the robot's own command mapping (its velocity controller between the user's wheel-speed command
     # and the wheel PIDs): the PID references are g_sum * (w_l + w_r)/2 -+ g_diff * (w_r - w_l)/2;
     # 1, 1 = the command as given (exactly: the map is skipped)
@@ -236,6 +240,8 @@ class Platform:
         "wheel_radius_scale_l": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "wheel_radius_scale_r": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "actuator_delay": (lambda x: 0 <= x < 2, "in [0, 2) s"),
+        "powertrain_tau_l": (lambda x: 0 <= x < 5, "in [0, 5) s"),
+        "powertrain_tau_r": (lambda x: 0 <= x < 5, "in [0, 5) s"),
         "command_gain_sum": (lambda x: 0 < x <= 5, "in (0, 5]"),
         "command_gain_diff": (lambda x: 0 < x <= 5, "in (0, 5]"),
         "command_limit_mean": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),

@@ -303,3 +303,25 @@ def test_change_of_a_zero_gap_is_zero_not_nan():
 
     assert change_text(0.0, 0.0) == "+0%" and change_text(0.0, 0.1) == "new"
     assert change_text(2.0, 1.0) == "-50%" and change_text(float("nan"), 1.0) == "n/a"
+
+
+def test_powertrain_lag_reference_is_the_first_order_step_response():
+    """The testbed's PID references with ``powertrain_tau_l/r`` set follow the closed-form first-order step
+    response 1 - exp(-t/tau) of the command (each side its own tau); at tau = 0 they are the command itself."""
+    import dataclasses
+
+    from bench.sim.testbed import _references
+
+    scn = load_scenario("gap_test_coulomb")
+    n = int(round(3.0 / scn.dt))
+    plain_l, plain_r = map(np.asarray, _references(scn, 0, n))
+    plat = dataclasses.replace(scn.platform, powertrain_tau_l=0.12, powertrain_tau_r=0.4)
+    lag_l, lag_r = map(np.asarray, _references(dataclasses.replace(scn, platform=plat), 0, n))
+    assert np.array_equal(plain_l, _references(scn, 0, n)[0])  # default: unchanged
+    k = np.flatnonzero(plain_l != 0)[0]  # the first commanded step: constant up to the next segment
+    seg = k + np.flatnonzero(np.diff(plain_l[k:]) != 0)[0] + 1 if np.any(np.diff(plain_l[k:]) != 0) else n + 1
+    t = (np.arange(k, seg) - k + 1) * scn.dt
+    for lag, plain, tau in ((lag_l, plain_l, 0.12), (lag_r, plain_r, 0.4)):
+        assert np.allclose(lag[k:seg], plain[k] * (1 - np.exp(-t / tau)), rtol=0, atol=1e-9 * abs(plain[k]))
+    assert C.get("powertrain_lag").spec_overrides(scn, (0.1, 0.2)) == {
+        "platform.powertrain_tau_l": 0.1, "platform.powertrain_tau_r": 0.2}

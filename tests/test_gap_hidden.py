@@ -42,6 +42,8 @@ CASES = [
     ("slope", JAN, {"terrain.slope": math.radians(-3.0)}, 107, {"slope_deg": -3.0}),
     ("motor_saturation", JAN, {"platform.motor.max_current": 2.2}, 108, {"max_current": 2.2}),
     ("actuator_delay", COUL, {"platform.actuator_delay": 0.045}, 109, {"delay": 0.045}),
+    ("powertrain_lag", COUL, {"platform.powertrain_tau_l": 0.12, "platform.powertrain_tau_r": 0.18}, 114,
+     {"tau_l": 0.12, "tau_r": 0.18}),
     ("command_map", JAN, {"platform.command_gain_sum": 0.92, "platform.command_gain_diff": 1.25}, 112,
      {"gain_sum": 0.92, "gain_diff": 1.25}),
     ("command_limit", COUL, {"platform.command_limit_mean": 3.6, "platform.command_limit_diff": 1.3}, 113,
@@ -50,7 +52,7 @@ CASES = [
     ("gyro_bias", COUL, {"platform.sensors.imu.gyro_bias_z": -0.015}, 111, {"gyro_bias_z": -0.015}),
 ]
 DEFAULT_RUN = {"rolling_resistance", "shear_displacement", "wheel_radius", "motor_saturation", "encoder_scale",
-               "command_limit"}
+               "command_limit", "powertrain_lag"}
 
 
 def _measured(sim, scenario: str, seed: int, hidden: dict):

@@ -141,6 +141,10 @@ def _delay_spec(scn, v):
     return {"platform.actuator_delay": v[0]}
 
 
+def _lag_spec(scn, v):
+    return {"platform.powertrain_tau_l": max(v[0], 0.0), "platform.powertrain_tau_r": max(v[1], 0.0)}
+
+
 def _cmd_spec(scn, v):
     return {"platform.command_gain_sum": v[0], "platform.command_gain_diff": v[1]}
 
@@ -258,6 +262,16 @@ CATALOGUE: tuple[Effect, ...] = (
         "every transient (acceleration, braking, turn entry) late by the same time; steady "
         "states unchanged", "delay",
         lambda s: (s.platform.actuator_delay,), _delay_apply, _delay_spec),
+    Effect(
+        "powertrain_lag", "per-side powertrain lag",
+        "Each side's wheel-speed reference follows the command through a first-order lag "
+        "tau dw/dt = u - w (time constant tau_l, tau_r [s]; DRIVE's powertrain, Baril et al. 2024): the "
+        "robot's own speed controller and drive train respond gradually, not at once.",
+        (Param("tau_l", "s", 0.0, 1.5, 0.05), Param("tau_r", "s", 0.0, 1.5, 0.05)),
+        ("enc_wl", "enc_wr", "tau_l", "tau_r", "imu_ax", "imu_gz"),
+        "wheel speeds approach each new command exponentially (no corner at the step, unlike a dead "
+        "time), torque peaks at command steps smaller and longer; steady states unchanged", "physics",
+        lambda s: (s.platform.powertrain_tau_l, s.platform.powertrain_tau_r), _phys(_lag_spec), _lag_spec),
     Effect(
         "command_map", "the robot's own command mapping",
         "The robot's velocity controller maps the wheel-speed command before the wheel PIDs: the "

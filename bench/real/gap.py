@@ -34,7 +34,10 @@ History: the first run of this workflow on these data (catalogue without command
 nothing and showed that the wheels do not follow the logged commands; the catalogue's
 ``command_map`` and ``command_limit`` (the robot's own velocity controller) were added from that
 diagnosis, tested on simulated data where they are hidden (tests/test_gap_hidden.py), and the run
-repeated.
+repeated.  The per-side powertrain lag (``powertrain_lag``, DRIVE's first-order response) was added next, to test
+whether the large fitted dead time (0.43 s) is a lag in disguise: on the bounded fit block it lowers the in-sample
+cost more than the dead time (1506 vs 3434 beside command_limit) but at tau_r on its 1.5 s bound, and its 2-fold
+held-out cost is worse (4872 vs 2531), so the selection keeps the dead time and the held-out result is unchanged.
 """
 from __future__ import annotations
 

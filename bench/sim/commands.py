@@ -119,3 +119,18 @@ def wheel_reference(t: np.ndarray, cmd: CommandSpec, platform: Platform, seed: i
         v, w = _random_profile(t, cmd, seed)
         return (v - w * B / 2) / r, (v + w * B / 2) / r
     raise SpecError("<command>", "command.kind", cmd.kind, "unknown command kind")
+
+
+def first_order_lag(ref: np.ndarray, dt: float, tau: float, initial: float = 0.0) -> np.ndarray:
+    """A side's powertrain as DRIVE models it (Baril et al. 2024; methods/baril2024/powertrain.py): the wheel-speed
+    reference follows the command through ``tau dw/dt = u - w``, discretised exactly under a zero-order hold,
+    ``w_k = w_{k-1} + (1 - exp(-dt/tau)) (u_k - w_{k-1})`` from ``w_{-1} = initial``; ``tau = 0`` returns ``ref``
+    itself (the command passes bit for bit)."""
+    if tau <= 0.0:
+        return ref
+    from scipy.signal import lfilter
+
+    alpha = 1.0 - math.exp(-dt / tau)
+    u = np.asarray(ref, float)
+    y, _ = lfilter([alpha], [1.0, alpha - 1.0], u, zi=[(1.0 - alpha) * initial])
+    return y

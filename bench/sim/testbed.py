@@ -37,7 +37,7 @@ from typing import Callable
 
 import numpy as np
 
-from bench.sim.commands import wheel_reference
+from bench.sim.commands import first_order_lag, wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
 from bench.sim.soil import soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_law
@@ -228,6 +228,10 @@ def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], li
         half = np.clip(g_diff * 0.5 * (ref_r - ref_l), -lim_diff, lim_diff)
         ref_l, ref_r = mean - half, mean + half
     ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
+    # per-side powertrain lag (DRIVE), from the initial wheel speed (_preload_initial_speed's)
+    v0, r = scn.initial_speed, plat.wheel_radius
+    ref_l = first_order_lag(ref_l, scn.dt, plat.powertrain_tau_l, v0 / (r * plat.wheel_radius_scale_l))
+    ref_r = first_order_lag(ref_r, scn.dt, plat.powertrain_tau_r, v0 / (r * plat.wheel_radius_scale_r))
     return ref_l.tolist(), ref_r.tolist()
 
 
