@@ -293,8 +293,9 @@ class Terrain:
     roughness_gd0: float = 0.0
     roughness_spacing: float = 0.1  # heightfield grid spacing [m]
     roughness_length_x: float = 51.2  # heightfield side along x [m], centred at roughness_centre_x
-    roughness_length_y: float = 51.2  # heightfield side along y [m], centred at y = 0
+    roughness_length_y: float = 51.2  # heightfield side along y [m], centred at roughness_centre_y
     roughness_centre_x: float = 0.0  # [m]
+    roughness_centre_y: float = 0.0  # [m]
     roughness_seed: int = 0  # seed of the heightfield (a terrain field: the same ground for every sensor seed)
     # deformable soil (bench/sim/soil.py): "rigid" = none (the soil fields are unused), "bekker" = Bekker
     # sinkage, compaction resistance and the Janosi-Hanamoto shear-strength limit c A + W tan(phi)
@@ -328,6 +329,7 @@ class Terrain:
         "roughness_length_x": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),
         "roughness_length_y": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),
         "roughness_centre_x": (lambda x: abs(x) <= 1000.0, "|x| <= 1000 m"),
+        "roughness_centre_y": (lambda x: abs(x) <= 1000.0, "|y| <= 1000 m"),
         "roughness_seed": (lambda x: 0 <= x < 2**63, ">= 0"),
     }
 

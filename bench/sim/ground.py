@@ -117,8 +117,9 @@ def height_at(h: np.ndarray, spacing: float, corner: tuple[float, float], x: flo
 
 def ground_corner(terr) -> tuple[float, float]:
     """World (x, y) of the heightfield's node (0, 0): the field spans ``roughness_length_x`` centred at
-    ``roughness_centre_x`` and ``roughness_length_y`` centred at y = 0."""
-    return terr.roughness_centre_x - 0.5 * terr.roughness_length_x, -0.5 * terr.roughness_length_y
+    ``roughness_centre_x`` and ``roughness_length_y`` centred at ``roughness_centre_y``."""
+    return (terr.roughness_centre_x - 0.5 * terr.roughness_length_x,
+            terr.roughness_centre_y - 0.5 * terr.roughness_length_y)
 
 
 def rough_ground(p, cid: int, terr, plat, yaw: float) -> tuple[int, float]:

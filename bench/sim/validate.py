@@ -44,7 +44,7 @@ from bench.sim.ground import ISO8608_CLASS_GD0, field_heights, iso8608_psd, prof
 from bench.sim.testbed import GRAVITY
 from bench.sim.soil import compaction_resistance, sinkage
 from bench.paths import SCENARIO_DIR
-from bench.spec import CommandSpec, Scenario, Segment, load_scenario, load_terrain, replace
+from bench.spec import CommandSpec, Scenario, Segment, list_scenarios, load_scenario, load_terrain, replace
 
 WANG_CHI_TABLE3 = (1.4662, 1.4480, 1.4394, 1.4341, 1.4215, 1.4232, 1.4165, 1.4115)  # lambda = 0..7
 
@@ -175,11 +175,13 @@ def heightfield_psd_fit(terr: Any) -> dict[str, float]:
 
 
 def _heightfield_psd() -> Check:
-    """Every terrain file that declares roughness, else (none yet) dirt at ISO 8608 class C: its heightfield's
+    """Every terrain file and scenario that declares roughness (else dirt at ISO 8608 class C): its heightfield's
     profile PSD against the class's closed form G_d(n0) (n / n0)^-2."""
-    terrains = [load_terrain(f.stem) for f in sorted((SCENARIO_DIR / "terrains").glob("*.toml"))]
-    rough = [t for t in terrains if t.roughness_gd0 > 0] or [replace(load_terrain("dirt"), roughness_gd0=ISO8608_CLASS_GD0["C"])]
-    fits = {t.name: heightfield_psd_fit(t) for t in rough}
+    rough = {f.stem: load_terrain(f.stem) for f in sorted((SCENARIO_DIR / "terrains").glob("*.toml"))}
+    rough |= {name: load_scenario(name).terrain for name in list_scenarios()}
+    rough = {k: t for k, t in rough.items() if t.roughness_gd0 > 0} or {
+        "dirt": replace(load_terrain("dirt"), roughness_gd0=ISO8608_CLASS_GD0["C"])}
+    fits = {name: heightfield_psd_fit(t) for name, t in rough.items()}
     ok = all(abs(f["slope"] + 2.0) < 0.15 and abs(f["gd0_ratio"] - 1.0) < 0.1 for f in fits.values())
     return Check("heightfield_iso8608_psd", ok, fits,
                  "row profiles' PSD slope -2 +- 0.15 and level G_d(n0) within 10% over 0.05 .. Nyquist/2 cycles/m",
