@@ -81,3 +81,12 @@ def test_bad_roughness_is_one_line_error():
     scn = load_scenario("ramp_wood_15", {"terrain.roughness_gd0": 1e-4, "duration": 0.1})
     with pytest.raises(ValueError, match="rough ramp"):
         run_physics(scn, 0)
+
+
+def test_psd_check_fails_on_a_field_of_another_class(monkeypatch):
+    from bench.sim import validate as V
+
+    assert V._heightfield_psd().passed
+    real = V.field_heights
+    monkeypatch.setattr(V, "field_heights", lambda gd0, *a: real(4.0 * gd0, *a))  # one class rougher
+    assert not V._heightfield_psd().passed

@@ -13,7 +13,8 @@ import pytest
 from bench.sim import validate as V
 
 PHYSICS = ("coulomb_rotation_closed_form", "rolling_torque_straight", "saturated_speed_motor_line",
-           "ramp_holding_torque", "locked_wheel_slide", "motor_line_eq26")
+           "ramp_holding_torque", "locked_wheel_slide", "motor_line_eq26", "soil_compaction_straight",
+           "heightfield_iso8608_psd")
 # outcomes scored by the papers' claims: asserted here before issue 30, now calibration checks only
 SCORED = ("chi_in_band", "chi_non_increasing", "chi_speed_invariant", "torque_decreases_with_radius",
           "saturation_speed", "ramp_5p4_holds_speed", "ramp_15_decelerates", "ramp_13p5_fails")
