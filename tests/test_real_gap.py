@@ -179,3 +179,19 @@ def test_command_tracking_slopes() -> None:
     assert f["slope_sum"] == pytest.approx(1.5, abs=1e-9) and f["slope_difference"] == pytest.approx(0.4, abs=1e-9)
     assert f["max_abs_gyro_rate"] == 0.7
     assert f["max_abs_cmd_yaw_rate_ideal"] == pytest.approx(R * np.max(np.abs(cr - cl)) / B)
+
+
+def test_a_zero_gap_prints_zero_percent_not_nan(gap_run: dict) -> None:
+    """A channel with no gap before or after (e.g. a perfect sensor) reads "+0%" in both tables of the report."""
+    import copy
+
+    from bench.real.gap_report import _markdown
+
+    doc = copy.deepcopy(gap_run["doc"])
+    ch = next(iter(doc["workflow"]["gap_before"]))
+    doc["workflow"]["gap_before"][ch]["rms"] = doc["workflow"]["gap_after"][ch]["rms"] = 0.0
+    row = doc["held_out"]["channels"][ch]
+    row["rms_before"], row["rms_after"], row["change_percent"] = 0.0, 0.0, float("nan")
+    md = _markdown(doc, False, "x_gap")
+    lines = [ln for ln in md.splitlines() if ln.startswith(f"| {ch} |")]
+    assert len(lines) == 2 and all("| +0% |" in ln and "nan" not in ln for ln in lines), lines

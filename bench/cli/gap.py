@@ -33,6 +33,7 @@ def gap_args(p: argparse.ArgumentParser) -> None:
 
 def gap_main(a: argparse.Namespace) -> int:
     from bench.gap import find_gap
+    from bench.gap.report import change_text
     from bench.report.io import atomic_write_json
     from bench.run import Run
 
@@ -50,8 +51,7 @@ def gap_main(a: argparse.Namespace) -> int:
         print(f"{'channel':9s} {'RMS before':>12s} {'RMS after':>12s} {'change':>8s}")
         for ch, b in res.gap_before.items():
             aft = res.gap_after[ch]["rms"]
-            change = 100.0 * (aft / b["rms"] - 1.0) if b["rms"] > 0 else float("nan")
-            print(f"{ch:9s} {b['rms']:12.4g} {aft:12.4g} {change:+7.0f}%")
+            print(f"{ch:9s} {b['rms']:12.4g} {aft:12.4g} {change_text(b['rms'], aft):>8s}")
     return 0
 
 

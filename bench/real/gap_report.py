@@ -10,7 +10,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from bench.gap import GapResult
-from bench.gap.report import STDERR_NOTE, uncertainty_text
+from bench.gap.report import STDERR_NOTE, change_text, uncertainty_text
 from bench.gap.residuals import UNITS
 from bench.real.held_out import MIN_REGIME_SHARE
 from bench.real.io import _new_figure, _save_figure
@@ -82,14 +82,14 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     add("|---|---|---:|---:|---:|---:|")
     for ch, b in wf["gap_before"].items():
         a = wf["gap_after"][ch]
-        chg = 100.0 * (a["rms"] / b["rms"] - 1.0) if b["rms"] > 0 else math.nan
-        add(f"| {ch} | {b['unit']} | {_g(b['rms'])} | {_g(a['rms'])} | {chg:+.0f} % | {_g(b['noise'], 2)} |")
+        add(f"| {ch} | {b['unit']} | {_g(b['rms'])} | {_g(a['rms'])} | {change_text(b['rms'], a['rms'])} | "
+            f"{_g(b['noise'], 2)} |")
     add("")
     add(f"## Held-out steps: gap before/after per channel ({ho['cost']['n_steps']} test steps, pooled)\n")
     add("| channel | unit | RMS before | RMS after | change | normalised RMS before | normalised RMS after | samples |")
     add("|---|---|---:|---:|---:|---:|---:|---:|")
     for ch, r in ho["channels"].items():
-        add(f"| {ch} | {r['unit']} | {_g(r['rms_before'])} | {_g(r['rms_after'])} | {r['change_percent']:+.0f} % | "
+        add(f"| {ch} | {r['unit']} | {_g(r['rms_before'])} | {_g(r['rms_after'])} | {change_text(r['rms_before'], r['rms_after'])} | "
             f"{_g(r['normalised_rms_before'])} | {_g(r['normalised_rms_after'])} | {r['n']} |")
     add("")
     hc = ho["cost"]
