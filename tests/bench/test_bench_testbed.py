@@ -1,4 +1,6 @@
-"""Speed of the testbed (make bench): real-time factor for P3-AT and DUBHE, and the bare
+"""Speed of the testbed (make bench): real-time factor for P3-AT and DUBHE (flat rigid ground: circle_vinyl; soft
+flat ground, the Bekker soil of bench/sim/soil.py: yi_s_gamma_sand on sand; liu_large_radius: dirt's soil on rough
+ground), and the bare
 pybullet stepSimulation cost of the same world beside it (issue 2 target: >= 100x real time for
 one P3-AT at the default step, i.e. <= 83 us per step all in).
 
@@ -44,7 +46,7 @@ def _bare_step_us(scenario: str, n: int = 600, repeats: int = 5) -> tuple[float,
 
 
 @pytest.mark.parametrize("scenario,duration", [("circle_vinyl", DURATION), ("liu_large_radius", DURATION),
-                                               ("circle_vinyl", 60.0)])
+                                               ("yi_s_gamma_sand", DURATION), ("circle_vinyl", 60.0)])
 def test_testbed_real_time_factor(benchmark, scenario, duration):
     scn = load_scenario(scenario, {"duration": duration})
     rounds = 5 if duration <= DURATION else 3
