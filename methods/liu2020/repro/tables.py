@@ -135,10 +135,11 @@ def _table2_notes(ctx: Any, ev: Evaluation, out: Mapping[str, float]) -> None:
     ctx.note("icr_vs_endr", "ICR / En-DR per scenario: " + _ratios(out, "icr", "en_dr") + " (published "
              + ", ".join(f"{k} {pub[f'{k}.icr'] / pub[f'{k}.en_dr']:.3f}" for k in SCENARIOS) + ").")
     ctx.note("icr_vs_endr_s1", (
-        f"ICR / En-DR {out['s1.icr'] / out['s1.en_dr']:.3f}. The testbed straight has no slip (truth mean |slip| "
-        f"{s1.truth_stats['abs_slip']:.1e}, mean |yaw rate| {s1.truth_stats['abs_wz']:.1e} rad/s): with w_l = w_r "
-        "the ICR model (8) gives the no-slip velocities, so ICR and En-DR coincide; both errors are the start pose "
-        "from the first GNSS fix."))
+        f"ICR / En-DR {out['s1.icr'] / out['s1.en_dr']:.3f} with the ICR of liu_calib ({ev.calib_icr[0]:.3f}, "
+        f"{ev.calib_icr[1]:.3f}, {ev.calib_icr[2]:.3f}) m. Truth on the straight (the ground of scenarios/liu_straight.toml): "
+        f"mean |slip| {s1.truth_stats['abs_slip']:.1e}, mean |yaw rate| {s1.truth_stats['abs_wz']:.1e} rad/s. With "
+        "w_l = w_r the ICR model (8) gives the no-slip velocities: on a straight without slip or yaw ICR and En-DR "
+        "coincide (ratio 1), and only the yaw the ground adds can separate them."))
     for k in ("s2", "s3"):
         ts = ev.scenarios[k].truth_stats
         ctx.note(f"icr_vs_endr_{k}", (
