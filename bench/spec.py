@@ -284,7 +284,7 @@ class Terrain:
     mu_lat_ratio: float = 1.0
     shear_modulus: float = 0.00054  # K [m]
     shear_modulus_lat_ratio: float = 1.0  # K_lat / K (testbed tire law; 1 = isotropic)
-    rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl)
+    rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl); rigid ground only (soil: Bekker compaction)
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
     friction_patches: tuple[FrictionPatch, ...] = ()

@@ -96,7 +96,7 @@ import glob  # noqa: E402
 import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bench.sources import SOURCE_KINDS  # noqa: E402
+from bench.sources import SOURCE_KINDS, _field_name  # noqa: E402
 from bench.spec import SCENARIO_DIR, Platform, Terrain, to_dict  # noqa: E402
 
 PLATFORM_FILES = sorted(glob.glob(str(SCENARIO_DIR / "platforms" / "*.toml")))
@@ -137,7 +137,7 @@ def test_every_shipped_parameter_names_its_source(path):
     written |= {f"{k}.{j}.{i}" for k, v in raw.items() if isinstance(v, dict) and k != "sources"
                 for j, w in v.items() if isinstance(w, dict) for i in w}
     for key in written - {"dt_max"}:  # dt_max: a requirement on the scenario's step, not a terrain field
-        src = spec.sources[key.replace("slope_deg", "slope")]
+        src = spec.sources[_field_name(key)]  # slope_deg -> slope, as the loader converts it
         assert src.kind in SOURCE_KINDS and src.ref, (key, src)
     claims = _claim_ids()
     for key, src in spec.sources.items():

@@ -472,8 +472,8 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             smz += stiff * (rx * ey - ry * ex);
         }
         double sgn = tanh(u / 0.01);
-        double roll = self->mu_roll * n_side * rr;
-        if (self->soil) roll = (self->mu_roll * n_side + rc_side) * rr;  /* + Bekker compaction resistance */
+        /* rolling resistance: mu_roll N on rigid ground; on soil Bekker's compaction resistance replaces it */
+        double roll = (self->soil ? rc_side : self->mu_roll * n_side) * rr;
         double t_roll = roll * sgn;
         double dt_roll = roll * (1 - sgn * sgn) * rr / 0.01;
         double num = tq - rr * f_lon_sum - t_roll;

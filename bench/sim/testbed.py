@@ -39,9 +39,9 @@ import numpy as np
 
 from bench.sim.commands import first_order_lag, wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
-from bench.sim.soil import soil_constants
+from bench.sim.soil import compaction_resistance, sinkage, soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_law
-from bench.spec import Scenario
+from bench.spec import Platform, Scenario, Terrain
 from bench.sim.ground import rough_ground  # after bench.spec: the uneven ground (ISO 8608)
 
 try:  # the C step (built by pip install; the Python loop below is the reference and the fallback)
@@ -244,12 +244,21 @@ def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SideP
     weight = plat.total_mass * GRAVITY
     for s in (0, 1):
         w[s] = v0 / r_eff[s]
-        hold = (0.5 * weight * math.sin(terr.slope)
-                + 0.5 * terr.rolling_resistance * weight * math.cos(terr.slope)) * r_eff[s]
+        hold = (0.5 * weight * math.sin(terr.slope) + _side_rolling_resistance(plat, terr, weight)) * r_eff[s]
         amps = hold / (motor.n * motor.gear * motor.eff * motor.K_T)
         volt = motor.K_B * motor.gear * w[s] + motor.R_a * amps
         pid[s].integ = volt / max(plat.pid.ki, 1e-9)
         pid[s].prev_ref = refs[s] = w[s]
+
+
+def _side_rolling_resistance(plat: Platform, terr: Terrain, weight: float) -> float:
+    """Rolling resistance [N] of one side's two wheels at rest on the slope, equal loads: mu_roll N on rigid ground,
+    Bekker's compaction resistance at the static sinkage on soil (as the step loop computes it)."""
+    normal = weight * math.cos(terr.slope)
+    if terr.soil_model != "bekker":
+        return 0.5 * terr.rolling_resistance * normal
+    z = sinkage(normal / 4.0, plat.wheel_radius, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
+    return 2.0 * compaction_resistance(z, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
 
 
 def _start_moving(robot: int, cid: int, orn: tuple, ang: tuple, v0: float) -> tuple[float, float, float]:
@@ -497,9 +506,9 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     smz += stiff * (rx * ey - ry * ex)
                 # rolling resistance torque on the side's wheels, smooth sign
                 sgn = tanh(u / 0.01)
-                roll = mu_roll * n_side * rr
-                if soil:  # + Bekker compaction resistance
-                    roll = (mu_roll * n_side + rc_side) * rr
+                # mu_roll N on rigid ground; on soil Bekker's compaction resistance replaces it (the terrain's
+                # rolling_resistance stood for the ground's deformation, which the soil model now computes)
+                roll = (rc_side if soil else mu_roll * n_side) * rr
                 t_roll = roll * sgn
                 dt_roll = roll * (1 - sgn * sgn) * rr / 0.01
                 num = tq - rr * f_lon_sum - t_roll
