@@ -19,10 +19,10 @@ venv: $(STAMP)
 TEST_WORKERS ?= auto
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow" --benchmark-skip -n $(TEST_WORKERS)
+	$(BIN)/python -m bench.cpu $(BIN)/python -m pytest -q -m "not slow" --benchmark-skip -n $(TEST_WORKERS)
 
 test-all: $(STAMP)
-	$(BIN)/python -m pytest -q --benchmark-skip -n $(TEST_WORKERS)
+	$(BIN)/python -m bench.cpu $(BIN)/python -m pytest -q --benchmark-skip -n $(TEST_WORKERS)
 
 reproduce: $(STAMP)
 	$(BIN)/skidbench reproduce --all $(if $(WORKERS),--workers $(WORKERS),)

@@ -74,3 +74,21 @@ def reexec_pinned(argv: list[str] | None = None) -> None:
     sys.stderr.flush()
     os.execve(sys.executable, [sys.executable, *subprocess._args_from_interpreter_flags(), "-c", code, *args],
               pinned_env())
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m bench.cpu CMD [ARGS...]``: run CMD under :func:`pinned_env` (``make test`` runs pytest so, and
+    the tests then see the numbers the pinned ``skidbench`` makes, on any x86-64 CPU)."""
+    args = sys.argv[1:] if argv is None else argv
+    if not args:
+        print("usage: python -m bench.cpu CMD [ARGS...]", file=sys.stderr)
+        return 2
+    env = pinned_env() if os.environ.get("SKIDBENCH_CPU", "").lower() != "native" else dict(os.environ)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execvpe(args[0], args, env)
+    return 0  # not reached
+
+
+if __name__ == "__main__":
+    sys.exit(main())

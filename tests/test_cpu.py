@@ -68,3 +68,18 @@ def test_verify_runs_on_a_missing_manifest_is_one_line(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2 and "none.json" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_python_m_bench_cpu_runs_a_command_pinned():
+    """``python -m bench.cpu CMD`` (how ``make test`` starts pytest): CMD sees every numpy dispatch target disabled,
+    so the tests' numbers are the pinned program's; without a command, a one-line usage error (exit 2)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NPY_DISABLE_CPU_FEATURES", "SKIDBENCH_CPU_PINNED",
+                                                            "SKIDBENCH_CPU")}
+    code = "from bench.cpu import dispatch_state; print(dispatch_state())"
+    out = subprocess.run([sys.executable, "-m", "bench.cpu", sys.executable, "-c", code], cwd=REPO, env=env,
+                         capture_output=True, text=True, check=True).stdout.split()
+    from numpy._core._multiarray_umath import __cpu_features__
+
+    assert out[-1] == ("baseline" if __cpu_features__.get("AVX2", False) else "native:openblas")
+    r = subprocess.run([sys.executable, "-m", "bench.cpu"], cwd=REPO, env=env, capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
