@@ -20,6 +20,7 @@ from bench.reproduce.runner import Runner
 from bench.spec import load_scenario
 from methods.liu2020 import repro as L
 from methods.liu2020 import fit_icr
+from tests.conftest import run_cache
 
 PAPER_TEXT = Path("/work/shared/papers/liu2020_slip_aware_mi_ukf.md")
 METHOD_COLUMNS = ("en_dr", "icr", "ukf_icr", "mi_ukf")
@@ -28,7 +29,7 @@ METHOD_COLUMNS = ("en_dr", "icr", "ukf_icr", "mi_ukf")
 @pytest.fixture(scope="module")
 def repro(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("liu2020_repro")
-    runner = Runner(cache_dir=tmp / "cache")
+    runner = Runner(cache_dir=run_cache(tmp_path_factory, "liu_cache"))
     res = R.reproduce_paper("liu2020", runner, tmp / "results", quick=True)
     return res, runner, tmp / "results" / "liu2020"
 

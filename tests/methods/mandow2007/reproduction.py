@@ -15,6 +15,7 @@ import pytest
 
 from bench import reproduce as R
 from bench.reproduce.runner import Runner
+from tests.conftest import run_cache
 
 PAPERS = Path(__file__).resolve().parents[4] / "shared" / "papers"
 MANDOW_MD = PAPERS / "mandow2007_experimental_kinematics.md"
@@ -31,7 +32,7 @@ _SESSION: dict[str, Any] = {}
 def quick_reproductions(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], Path]:
     """Quick reproductions of both papers, cold cache, two simulation processes (once per session)."""
     if "results" not in _SESSION:
-        runner = Runner(cache_dir=tmp_path_factory.mktemp("cache"), workers=2)
+        runner = Runner(cache_dir=run_cache(tmp_path_factory, "cache"), workers=2)
         out = tmp_path_factory.mktemp("results")
         res = {p: R.reproduce_paper(p, runner, out, quick=True, use_cache=False) for p in ("mandow2007", "wang2015")}
         _SESSION["results"] = (res, out)

@@ -11,6 +11,7 @@ from bench import reproduce as R
 from bench.reproduce.runner import Runner
 from bench.run import Run
 from tests.methods.yi2009.synthetic import CAL_COMBOS_RPM, TESTBED, synthetic_run
+from tests.conftest import run_cache
 
 
 @pytest.fixture(scope="module")
@@ -27,5 +28,5 @@ def consistent_runs() -> list[Run]:
 @pytest.fixture(scope="package")  # the reproduction runs once for test_repro.py and test_nees.py
 def result(tmp_path_factory) -> tuple[R.PaperResult, Path]:
     out = tmp_path_factory.mktemp("yi_results")
-    runner = Runner(cache_dir=tmp_path_factory.mktemp("yi_cache"), workers=2)
+    runner = Runner(cache_dir=run_cache(tmp_path_factory, "yi_cache"), workers=2)
     return R.reproduce_paper("yi2009", runner, out, quick=True), out

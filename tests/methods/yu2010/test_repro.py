@@ -21,6 +21,7 @@ from bench.reproduce.runner import Runner
 from bench.spec import load_platform
 from methods.yu2010 import ResistanceTable, YuParams, simulate_closed_loop
 from methods.yu2010 import repro
+from tests.conftest import run_cache
 
 PAPER = Path("/work/shared/papers/yu2010_dynamic_model_closed_loop.md")
 
@@ -35,7 +36,7 @@ TABLE_I = {
 
 @pytest.fixture(scope="module")
 def cache_dir(tmp_path_factory) -> Path:
-    return tmp_path_factory.mktemp("yu_cache")
+    return run_cache(tmp_path_factory, "yu_cache")
 
 
 @pytest.fixture(scope="module")
