@@ -26,10 +26,12 @@ class SpecError(ValueError):
 
 
 
+PA_PER_PSI = 6894.757293168361  # 1 psi = 1 lbf/in^2 (NIST SP 811)
 _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
     "slope_deg": ("slope", math.radians),
     "initial_yaw_deg": ("initial_yaw", math.radians),
     "soil_friction_angle_deg": ("soil_friction_angle", math.radians),
+    "tire_pressure_psi": ("tire_pressure", lambda psi: psi * PA_PER_PSI),
 }
 
 

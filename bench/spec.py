@@ -5,7 +5,7 @@ key, a wrong type, an out-of-range value or a missing file raises :class:`SpecEr
 file, the dotted field and the offending value.  TOML is parsed as data only (``tomllib``).
 
 Units are SI inside.  Files may give a few quantities in the units the papers use; those fields
-carry the unit in their name (``*_deg``, ``*_rpm``, ``*_cm``) and are converted at the file
+carry the unit in their name (``*_deg``, ``*_psi``) and are converted at the file
 boundary, into the SI field of the dataclass.  The validation itself (:func:`build`, :class:`SpecError`)
 is :mod:`bench.schema`; both names are importable from here.
 
@@ -216,6 +216,13 @@ class Platform:
     command_limit_mean: float = math.inf
     command_limit_diff: float = math.inf
     payload: float = 0.0  # extra mass at the CG [kg]
+    # tire contact (bench/sim/tire.py tire_contact): 0, 0 = none (patch (L - C)/2 of Yu's Table II, nominal radius);
+    # a pneumatic tire's inflation pressure [Pa] (tire_pressure_psi in files): the toroidal-membrane contact gives
+    # each wheel's patch length and loaded rolling radius from its load; or a solid rubber tire's Young's modulus
+    # [Pa]: Hertz line contact gives the patch (the rolling radius stays nominal)
+    tire_pressure: float = 0.0
+    tire_modulus: float = 0.0
+    tire_rolling_resistance: float = 0.0  # the tire's rolling-resistance coefficient, added to the terrain's (rigid ground)
     motor: MotorSpec = field(default_factory=MotorSpec)
     pid: PidSpec = field(default_factory=PidSpec)
     sensors: SensorSpec = field(default_factory=SensorSpec)
@@ -247,6 +254,9 @@ class Platform:
         "command_limit_mean": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
         "command_limit_diff": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
         "payload": (_nonneg, ">= 0 kg"),
+        "tire_pressure": (lambda x: 0 <= x <= 1e6, "in [0, 1e6] Pa (0: no pneumatic tire; 145 psi)"),
+        "tire_modulus": (lambda x: 0 <= x <= 1e9, "in [0, 1e9] Pa (0: no solid tire)"),
+        "tire_rolling_resistance": (lambda x: -0.2 < x < 0.2, "in (-0.2, 0.2) (added to the terrain's)"),
     }
 
     @property

@@ -157,7 +157,8 @@ def _worked_example_z(seeds) -> list[float]:
     from bench.gap import WORKED_EXAMPLE as ex
     from bench.sim import simulate
 
-    truth = {"radius_scale_l": 0.97, "radius_scale_r": ex["hidden"]["platform.wheel_radius_scale_r"]}
+    # the left scale is the platform's own (1 since issue 31: the tire's loaded radius is physics, not a scale)
+    truth = {"radius_scale_l": 1.0, "radius_scale_r": ex["hidden"]["platform.wheel_radius_scale_r"]}
     assert load_scenario(ex["scenario"]).platform.wheel_radius_scale_l == truth["radius_scale_l"]
     z = []
     for seed in seeds:

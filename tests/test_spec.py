@@ -150,7 +150,8 @@ def test_the_calibration_targets_named_by_issue_30_are_marked_chosen():
     """The parameters the issue names as chosen for an outcome and kept (no independent source)."""
     p20 = load_platform("p3at_pneumatic_20psi").sources
     assert p20["motor.max_power"].kind == "chosen" and "yu2010.ramps_testbed" in p20["motor.max_power"].claims
-    assert p20["wheel_radius_scale_l"].kind == "chosen"
+    # issue 31: the tire's loaded rolling radius replaces the radius scales copied from Mandow (no longer chosen)
+    assert p20["wheel_radius_scale_l"].kind == "testbed" and load_platform("p3at_pneumatic_20psi").wheel_radius_scale_l == 1
     assert load_platform("dubhe").sources["motor.max_current"].kind == "chosen"
     assert load_terrain("ramp_whiteboard_13p5").sources["mu_sa"].kind == "chosen"
     for name in ("asphalt", "smooth_concrete"):
@@ -239,3 +240,23 @@ def test_overrides_get_an_override_source_and_leave_the_physics_hash_alone():
     stripped = dataclasses.replace(base.terrain, sources=type(base.terrain.sources)())
     assert stripped == base.terrain
     assert scenario_hash(dataclasses.replace(base, terrain=stripped)) == scenario_hash(base)
+
+
+def test_tire_fields_convert_psi_at_the_file_boundary_and_are_range_checked(tmp_path):
+    """tire_pressure_psi -> Pa (1 psi = 6894.757 Pa, NIST SP 811); the tire fields reject what is not physical and
+    are --set-able; every P3-AT tire set names a source for each new parameter (issue 31)."""
+    p20, p50, solid = (load_platform(n) for n in ("p3at_pneumatic_20psi", "p3at_pneumatic_50psi", "p3at_solid"))
+    assert p20.tire_pressure == pytest.approx(20 * 6894.757, rel=1e-6)
+    assert p50.tire_pressure == pytest.approx(50 * 6894.757, rel=1e-6)
+    assert (solid.tire_pressure, p20.tire_modulus) == (0.0, 0.0) and solid.tire_modulus > 0
+    for p in (p20, p50, solid):
+        assert (p.cg_offset_x, p.cg_offset_y) == (-0.004, 0.0026)
+        for key in ("tire_pressure", "tire_modulus", "tire_rolling_resistance", "cg_offset_x", "cg_offset_y"):
+            assert p.sources[key].kind in ("paper", "testbed"), (p.name, key)
+    scn = load_scenario("circle_vinyl", {"platform.tire_pressure": 2.0e5, "platform.tire_rolling_resistance": 0.01})
+    assert (scn.platform.tire_pressure, scn.platform.tire_rolling_resistance) == (2.0e5, 0.01)
+    assert scn.platform.sources["tire_pressure"].kind == "override"
+    for key, bad in (("platform.tire_pressure", -1.0), ("platform.tire_modulus", -5.0),
+                     ("platform.tire_rolling_resistance", 0.3)):
+        with pytest.raises(SpecError, match=key.split(".")[1]):
+            load_scenario("circle_vinyl", {key: bad})

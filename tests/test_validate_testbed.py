@@ -14,7 +14,8 @@ from bench.sim import validate as V
 
 PHYSICS = ("coulomb_rotation_closed_form", "rolling_torque_straight", "saturated_speed_motor_line",
            "ramp_holding_torque", "locked_wheel_slide", "motor_line_eq26", "soil_compaction_straight",
-           "heightfield_iso8608_psd")
+           "heightfield_iso8608_psd", "static_wheel_loads_cg_offset", "rolling_torque_tire_types",
+           "loaded_rolling_radius_straight")
 # outcomes scored by the papers' claims: asserted here before issue 30, now calibration checks only
 SCORED = ("chi_in_band", "chi_non_increasing", "chi_speed_invariant", "torque_decreases_with_radius",
           "saturation_speed", "ramp_5p4_holds_speed", "ramp_15_decelerates", "ramp_13p5_fails")
@@ -61,6 +62,18 @@ def test_a_check_fails_when_the_physics_disagrees_with_its_closed_form(monkeypat
     assert not V._locked_slide().passed
 
 
+def test_tire_checks_fail_without_the_tire_physics(monkeypatch):
+    """The tire checks can fail: a closed form without the tire's rolling resistance misses the torque by 9 % / 25 %;
+    one without the CoM offset misses the loads; one with the nominal radius misses v / w by 0.56 mm."""
+    assert V._rolling_torque_tires().passed and V._static_loads().passed and V._loaded_radius().passed
+    monkeypatch.setattr(V, "rolling_coefficient", lambda plat, terr: terr.rolling_resistance)
+    assert not V._rolling_torque_tires().passed
+    monkeypatch.setattr(V, "static_loads", lambda plat: [plat.total_mass * V.GRAVITY / 4] * 4)
+    assert not V._static_loads().passed
+    monkeypatch.setattr(V, "membrane_deflection", lambda plat, load: 0.0)  # the nominal radius
+    assert not V._loaded_radius().passed
+
+
 def test_motor_line_check_catches_a_drive_that_ignores_the_current_limit(monkeypatch):
     base = V.load_scenario("circle_vinyl")
     assert V._motor_line(base).passed
@@ -74,9 +87,11 @@ def test_motor_line_check_catches_a_drive_that_ignores_the_current_limit(monkeyp
 
 
 def test_saturated_speed_closed_form_against_a_hand_computation():
-    """Yu 2010 Table II motor, U_loss 0.5 V, 20 psi radius 0.97 x 0.1075 m on vinyl (mu_roll 0.0371, 30.6 kg)."""
+    """Yu 2010 Table II motor, U_loss 0.5 V, the 20 psi tire's loaded radius 0.1075 m - delta/3 (toroidal membrane:
+    delta = (m g / 4) / (2 pi p sqrt(r b/2)), 20 psi, b = 0.05 m) on vinyl (mu_roll 0.0371, 30.6 kg)."""
     scn = V.load_scenario("straight_1p5_vinyl")
-    r = 0.1075 * 0.97
+    delta = 30.6 * 9.81 / 4 / (2 * 3.141592653589793 * 20 * 6894.757293168361 * (0.1075 * 0.025) ** 0.5)
+    r = 0.1075 - delta / 3
     i_load = 0.0371 * 30.6 * 9.81 / 2 * r / (2 * 49.8 * 0.023)
     r_a, k_b = 12 * 0.023 / 0.2775, 12 / 487.16
     expect = r * (0.95 * (12 - 0.5) - r_a * i_load) / (k_b * 49.8)

@@ -38,6 +38,8 @@ typedef struct {
     int janosi, pid_every, pid_adds_slope;
     int soil;  /* Bekker soil force model (bench/sim/soil.py), set by set_soil; 0 = rigid ground */
     double soil_z_coef, soil_z_exp, soil_rc_coef, soil_n1, soil_tan_phi, soil_ca_coef;
+    int tire;  /* per-wheel patch and loaded radius from the load (bench.sim.tire.tire_contact), set by set_tire */
+    double tire_p_coef, tire_q_coef;
     long n_steps;
     Patch *patches;
     Py_ssize_t n_patches;
@@ -184,6 +186,7 @@ static int Kernel_init(Kernel *self, PyObject *args, PyObject *kwds) {
     memset(self->pid_integ, 0, sizeof self->pid_integ); memset(self->pid_prev, 0, sizeof self->pid_prev);
     memset(self->pid_has_prev, 0, sizeof self->pid_has_prev); memset(self->defl, 0, sizeof self->defl);
     memset(self->normal, 0, sizeof self->normal); memset(self->has_cpos, 0, sizeof self->has_cpos);
+    self->soil = self->tire = 0;
     self->log_cap = n;
     self->log_rows = 0;
     self->log = PyMem_Malloc(sizeof(double) * N_REC * (size_t)n);
@@ -208,6 +211,13 @@ static PyObject *Kernel_set_soil(Kernel *self, PyObject *args) {
                           &self->soil_tan_phi, &self->soil_ca_coef))
         return NULL;
     self->soil = 1;
+    Py_RETURN_NONE;
+}
+
+/* set_tire(patch_coef, radius_coef): bench.sim.tire.tire_contact; switches the per-wheel tire contact on */
+static PyObject *Kernel_set_tire(Kernel *self, PyObject *args) {
+    if (!PyArg_ParseTuple(args, "dd", &self->tire_p_coef, &self->tire_q_coef)) return NULL;
+    self->tire = 1;
     Py_RETURN_NONE;
 }
 
@@ -274,7 +284,7 @@ static int motor_call(Kernel *self, double volt, double w, double *tq, double *c
 
 /* tire_law's janosi / coulomb -> (f_lon, f_lat, stiff) */
 static int law_call(Kernel *self, double s_lon, double s_lat, double u, double v_lon, double normal, double mu,
-                    double *f_lon, double *f_lat, double *stiff) {
+                    double ps, double *f_lon, double *f_lat, double *stiff) {
     if (normal <= 0.0) {
         *f_lon = *f_lat = *stiff = 0.0;
         return 0;
@@ -293,8 +303,8 @@ static int law_call(Kernel *self, double s_lon, double s_lat, double u, double v
         if (h > v_ref) v_ref = h;
         if (self->eps > v_ref) v_ref = self->eps;
         if (v_ref == 0.0) return zero_division();
-        double z_lon = s_lon * self->c_lon / v_ref;
-        double z_lat = s_lat * self->c_lat / v_ref;
+        double z_lon = s_lon * (self->c_lon * ps) / v_ref;
+        double z_lat = s_lat * (self->c_lat * ps) / v_ref;
         double z;
         if (py_hypot(self, z_lon, z_lat, &z) < 0) return -1;
         if (z == 0.0) return zero_division();
@@ -398,7 +408,13 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
         for (int i = 2 * s; i < 2 * s + 2; i++) {
             double nf = normal[i];
             if (nf <= 0.0 || !self->has_cpos[i]) continue;
-            n_side += nf;
+            double ps = 1.0, q = 1.0;  /* this wheel's patch length and loaded rolling radius r q */
+            if (self->tire) {
+                ps = self->tire_p_coef * sqrt(nf);
+                q = 1.0 - self->tire_q_coef * nf;
+            }
+            double ui = u * q;
+            n_side += nf * q;
             double cx = self->cpos[i][0], cy_ = self->cpos[i][1], cz = self->cpos[i][2];
             double rx = cx - px, ry = cy_ - py, rz = cz - pz;
             double vcx = lx_ + wy_ * rz - wz_ * ry;
@@ -432,10 +448,10 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
                 }
             }
             double f_lon, f_lat, stiff;
-            if (law_call(self, v_lon - u, v_lat, u, v_lon, nf, mu, &f_lon, &f_lat, &stiff) < 0) return NULL;
+            if (law_call(self, v_lon - ui, v_lat, ui, v_lon, nf, mu, ps, &f_lon, &f_lat, &stiff) < 0) return NULL;
             double *d = self->defl[i];
-            if (fabs(u) < self->eps && fabs(v_lon) < self->eps && fabs(v_lat) < self->eps) {
-                d[0] += (v_lon - u) * dt;
+            if (fabs(ui) < self->eps && fabs(v_lon) < self->eps && fabs(v_lat) < self->eps) {
+                d[0] += (v_lon - ui) * dt;
                 d[1] += v_lat * dt;
                 f_lon -= self->k_hold * d[0];
                 f_lat -= self->k_hold * d[1];
@@ -453,8 +469,8 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             } else {
                 d[0] = d[1] = 0.0;
             }
-            f_lon_sum += f_lon;
-            stiff_sum += stiff;
+            f_lon_sum += q * f_lon;
+            stiff_sum += q * q * stiff;
             double gx = f_lon * ex + f_lat * lx;
             double gy = f_lon * ey + f_lat * ly;
             double gz = f_lon * ez + f_lat * lz;
@@ -464,12 +480,13 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             mx += ry * gz - rz * gy;
             my += rz * gx - rx * gz;
             mz += rx * gy - ry * gx;
-            sx += stiff * ex;
-            sy += stiff * ey;
-            sz += stiff * ez;
-            smx += stiff * (ry * ez - rz * ey);
-            smy += stiff * (rz * ex - rx * ez);
-            smz += stiff * (rx * ey - ry * ex);
+            double sq = stiff * q;
+            sx += sq * ex;
+            sy += sq * ey;
+            sz += sq * ez;
+            smx += sq * (ry * ez - rz * ey);
+            smy += sq * (rz * ex - rx * ez);
+            smz += sq * (rx * ey - ry * ex);
         }
         double sgn = tanh(u / 0.01);
         /* rolling resistance: mu_roll N on rigid ground; on soil Bekker's compaction resistance replaces it */
@@ -524,6 +541,7 @@ static PyObject *Kernel_log(Kernel *self, PyObject *Py_UNUSED(ignored)) {
 static PyMethodDef Kernel_methods[] = {
     {"set_motor", (PyCFunction)Kernel_set_motor, METH_VARARGS, "motor-line and PID-scale constants"},
     {"set_soil", (PyCFunction)Kernel_set_soil, METH_VARARGS, "Bekker soil constants (switches the soil on)"},
+    {"set_tire", (PyCFunction)Kernel_set_tire, METH_VARARGS, "tire contact constants (switches the tire on)"},
     {"set_side", (PyCFunction)Kernel_set_side, METH_VARARGS, "initial-speed preload of one side"},
     {"step", (PyCFunction)(void (*)(void))Kernel_step, METH_FASTCALL, "one physics step's forces, and its log row"},
     {"log", (PyCFunction)Kernel_log, METH_NOARGS, "the logged rows as float64 bytes"},

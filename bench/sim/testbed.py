@@ -40,7 +40,7 @@ import numpy as np
 from bench.sim.commands import first_order_lag, wheel_reference
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
 from bench.sim.soil import compaction_resistance, sinkage, soil_constants
-from bench.sim.tire import friction_coefficient, tire_constants, tire_law
+from bench.sim.tire import friction_coefficient, tire_constants, tire_contact, tire_law
 from bench.spec import Platform, Scenario, Terrain
 from bench.sim.ground import rough_ground  # after bench.spec: the uneven ground (ISO 8608)
 
@@ -128,8 +128,9 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
         collisionFramePosition=(0, 0, plat.body_height / 2 + 0.25 * r), physicsClientId=cid,
     )
     sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=cid)
-    # base link frame: geometric centre at axle height; CoM offset from it
-    cg = (plat.cg_offset_x, plat.cg_offset_y, plat.cg_height - r)
+    # base link frame: geometric centre at axle height; the chassis CoM placed so that the whole vehicle's (with its
+    # four wheels at the corners) is at (cg_offset_x, cg_offset_y) from the geometric centre
+    cg = (plat.cg_offset_x * m_total / m_base, plat.cg_offset_y * m_total / m_base, plat.cg_height - r)
     links = [(a, b, 0.0), (-a, b, 0.0), (a, -b, 0.0), (-a, -b, 0.0)]
     # place on the tilted plane: the link origin r above the surface along its normal
     n = (-math.sin(terr.slope), 0.0, math.cos(terr.slope))  # plane normal after the tilt
@@ -252,13 +253,23 @@ def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SideP
 
 
 def _side_rolling_resistance(plat: Platform, terr: Terrain, weight: float) -> float:
-    """Rolling resistance [N] of one side's two wheels at rest on the slope, equal loads: mu_roll N on rigid ground,
-    Bekker's compaction resistance at the static sinkage on soil (as the step loop computes it)."""
+    """Rolling resistance [N] of one side's two wheels at rest on the slope, equal loads: mu_roll N on rigid ground
+    (terrain and tire, :func:`rolling_coefficient`), Bekker's compaction resistance at the static sinkage on soil."""
     normal = weight * math.cos(terr.slope)
     if terr.soil_model != "bekker":
-        return 0.5 * terr.rolling_resistance * normal
+        return 0.5 * rolling_coefficient(plat, terr) * normal
     z = sinkage(normal / 4.0, plat.wheel_radius, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
     return 2.0 * compaction_resistance(z, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
+
+
+def rolling_coefficient(plat: Platform, terr: Terrain) -> float:
+    """Rolling-resistance coefficient on rigid ground: the terrain's plus the tire's (``Platform.tire_rolling_resistance``,
+    the tire's difference from the tire the terrain's value was measured with); on soil only the compaction acts."""
+    mu = terr.rolling_resistance + plat.tire_rolling_resistance
+    if mu < 0.0:
+        raise ValueError(f"platform {plat.name} on {terr.name}: rolling resistance {mu} < 0 "
+                         f"(terrain {terr.rolling_resistance} + tire {plat.tire_rolling_resistance})")
+    return mu
 
 
 def _start_moving(robot: int, cid: int, orn: tuple, ang: tuple, v0: float) -> tuple[float, float, float]:
@@ -330,7 +341,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         k_hold = k_max / HOLD_TIME  # stiffness of a standing patch: settles in ~HOLD_TIME
         k_hold_dt = k_hold * dt
         defl = [[0.0, 0.0] for _ in range(4)]
-        mu_roll = terr.rolling_resistance
+        mu_roll = rolling_coefficient(plat, terr)
+        tire = plat.tire_pressure > 0.0 or plat.tire_modulus > 0.0  # per-wheel patch and loaded radius from the load
+        p_coef, q_coef = tire_contact(plat.wheel_radius, plat.wheel_width, plat.tire_pressure,
+                                      plat.tire_modulus) if tire else (0.0, 0.0)
+        patch_law = 1.0 if tire else patch_wheel  # with a tire, the law per metre of patch, scaled per wheel
         pid_slope = -motor.n * motor.gear * motor.eff * motor.K_T * plat.pid.kp * plat.pid.gain_scale / motor.R_a
         patches = terr.friction_patches
         mu_sa, mu_op = terr.mu_sa, terr.mu_op
@@ -348,7 +363,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         pid_dt = dt * pid_every
         pid_adds_slope = pid_every == 1
         volts = [0.0, 0.0]
-        law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_wheel, eps, k_max)
+        law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_law, eps, k_max)
         k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
         w = [0.0, 0.0]
         th = [0.0, 0.0]
@@ -359,7 +374,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         cpos: list = [None] * 4
         cnorm: list = [None] * 4
         if KERNEL is not None and os.environ.get("SKIDBENCH_KERNEL", "c") != "python":
-            c_lon, c_lat, eps2 = tire_constants(K, terr.shear_modulus_lat_ratio, patch_wheel, eps)
+            c_lon, c_lat, eps2 = tire_constants(K, terr.shear_modulus_lat_ratio, patch_law, eps)
             kern = KERNEL.Kernel(
                 (dt, lim, eps, k_max, k_hold, k_hold_dt, mu_roll, pid_slope, mu_sa, mu_op, v_max, i_max, pid_dt,
                  i_side, k_amp, r_eff[0], r_eff[1], dt_rr[0], dt_rr[1], c_lon, c_lat, terr.mu_lat_ratio, eps2,
@@ -370,6 +385,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             kern.set_motor(*motor_line_constants(motor), plat.pid.gain_scale)
             if soil:
                 kern.set_soil(z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef)
+            if tire:
+                kern.set_tire(p_coef, q_coef)
             return PhysicsTrace(_kernel_loop(kern, scn, motor, pid, r_eff, robot, cid, n_settle, n_steps, progress), cg)
         # the log is one flat list of floats: floats are not tracked by the cyclic GC, so the loop
         # allocates no lasting GC-tracked object (a list of row tuples triggered a collection
@@ -441,7 +458,13 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     nf = normal[i]
                     if nf <= 0.0 or cpos[i] is None:
                         continue
-                    n_side += nf
+                    if tire:  # this wheel's patch length and loaded rolling radius r q (bench.sim.tire.tire_contact)
+                        ps = p_coef * math.sqrt(nf)
+                        q = 1.0 - q_coef * nf
+                    else:
+                        ps = q = 1.0
+                    ui = u * q
+                    n_side += nf * q
                     cx, cy_, cz = cpos[i]
                     rx, ry, rz = cx - px, cy_ - py, cz - pz
                     # velocity of the chassis material point at the contact
@@ -466,13 +489,13 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                                 if fp.t_period > 0:
                                     scale = 1.0 + (fp.mu_scale - 1.0) * 0.5 * (1 - math.cos(2 * math.pi * t_now / fp.t_period))
                                 mu *= scale
-                    f_lon, f_lat, stiff = law(v_lon - u, v_lat, u, v_lon, nf, mu)
-                    if abs(u) < eps and abs(v_lon) < eps and abs(v_lat) < eps:
+                    f_lon, f_lat, stiff = law(v_lon - ui, v_lat, ui, v_lon, nf, mu, ps)
+                    if abs(ui) < eps and abs(v_lon) < eps and abs(v_lat) < eps:
                         # standing wheel: the patch sticks. Its elastic deflection (a bristle
                         # spring, LuGre-like) holds the robot on a slope without creep; the
                         # velocity cap alone would act as a viscous damper and let it creep.
                         d = defl[i]
-                        d[0] += (v_lon - u) * dt
+                        d[0] += (v_lon - ui) * dt
                         d[1] += v_lat * dt
                         f_lon -= k_hold * d[0]
                         f_lat -= k_hold * d[1]
@@ -487,8 +510,9 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     else:
                         d = defl[i]
                         d[0] = d[1] = 0.0
-                    f_lon_sum += f_lon
-                    stiff_sum += stiff
+                    # the wheel's radius r q: its torque q rr f_lon, its stiffness seen by the spin (q rr)^2 stiff
+                    f_lon_sum += q * f_lon
+                    stiff_sum += q * q * stiff
                     gx = f_lon * ex + f_lat * lx
                     gy = f_lon * ey + f_lat * ly
                     gz = f_lon * ez + f_lat * lz
@@ -498,15 +522,16 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     mx += ry * gz - rz * gy
                     my += rz * gx - rx * gz
                     mz += rx * gy - ry * gx
-                    sx += stiff * ex
-                    sy += stiff * ey
-                    sz += stiff * ez
-                    smx += stiff * (ry * ez - rz * ey)
-                    smy += stiff * (rz * ex - rx * ez)
-                    smz += stiff * (rx * ey - ry * ex)
+                    sq = stiff * q
+                    sx += sq * ex
+                    sy += sq * ey
+                    sz += sq * ez
+                    smx += sq * (ry * ez - rz * ey)
+                    smy += sq * (rz * ex - rx * ez)
+                    smz += sq * (rx * ey - ry * ex)
                 # rolling resistance torque on the side's wheels, smooth sign
                 sgn = tanh(u / 0.01)
-                # mu_roll N on rigid ground; on soil Bekker's compaction resistance replaces it (the terrain's
+                # mu_roll sum N_i q_i (terrain + tire coefficient) on rigid ground; on soil Bekker's compaction resistance replaces it (the terrain's
                 # rolling_resistance stood for the ground's deformation, which the soil model now computes)
                 roll = (rc_side if soil else mu_roll * n_side) * rr
                 t_roll = roll * sgn

@@ -20,6 +20,11 @@ wheel contact comes from here.  Two laws, chosen by ``Terrain.model``:
 smoothly on the sign of torque x wheel speed.  Lateral friction is ``mu * mu_lat_ratio``.
 The force magnitude is capped at ``k_max |s|`` (k_max = m_eff/dt) so the explicit coupling to
 Bullet's chassis integration stays stable at tiny slips (DESIGN.md testbed notes).
+
+Tire types (:func:`tire_contact`, ``Platform.tire_pressure`` / ``tire_modulus``): each wheel's patch length
+follows from its current load W, ``l = patch_coef sqrt(W)``, and so does its loaded rolling radius
+``r (1 - radius_coef W)``; the law's small-slip stiffness, and with it the cornering stiffness
+``C_alpha = mu W l / (2 K_lat)`` [N/rad], scales with l.
 """
 from __future__ import annotations
 
@@ -41,6 +46,45 @@ def janosi_fraction(j_max: float, K: float) -> float:
     return 1.0 - (1.0 - math.exp(-z)) / z
 
 
+def tire_contact(radius: float, width: float, pressure: float, modulus: float) -> tuple[float, float]:
+    """(patch_coef, radius_coef): a wheel under load W [N] has the patch length ``patch_coef sqrt(W)`` [m] and the
+    loaded rolling radius ``radius (1 - radius_coef W)``.
+
+    Pneumatic (``pressure`` p > 0): a toroidal membrane, crown radius r and section radius rho = b / 2, pressed
+    delta into the ground touches it on an ellipse of semi-axes sqrt(2 r delta) and sqrt(2 rho delta) (small
+    delta, geometry); the inflation pressure over that area carries the load, the carcass stiffness neglected
+    (Wong, Theory of Ground Vehicles, 3rd ed. 2001, Sec. 1.1: average contact pressure ~ inflation pressure):
+    ``delta = W / (2 pi p sqrt(r rho))``, patch ``l = 2 sqrt(2 r delta)``; the effective rolling radius of a loaded
+    tire is ``r - delta / 3`` (Jazar, Vehicle Dynamics: Theory and Application, 2008, Sec. 3.3).
+    Solid rubber (``modulus`` E > 0): Hertz line contact of an incompressible rubber cylinder (nu = 0.5) on rigid
+    ground (Johnson, Contact Mechanics, 1985, Sec. 4.3): half-width ``a = sqrt(4 W r / (pi b E*))``, E* = E / (1 -
+    nu^2), ``l = 2 a``; its deflection (~0.1 mm) is not applied to the radius (radius_coef 0).
+    """
+    if pressure > 0.0 and modulus > 0.0:
+        raise ValueError("a tire is pneumatic (tire_pressure) or solid (tire_modulus), not both")
+    if pressure > 0.0:
+        delta_per_n = 1.0 / (2.0 * math.pi * pressure * math.sqrt(radius * width / 2.0))
+        return 2.0 * math.sqrt(2.0 * radius * delta_per_n), delta_per_n / (3.0 * radius)
+    if modulus > 0.0:
+        e_star = modulus / (1.0 - 0.25)
+        return 2.0 * math.sqrt(4.0 * radius / (math.pi * width * e_star)), 0.0
+    raise ValueError("no tire: tire_pressure and tire_modulus are both 0")
+
+
+def pneumatic_rolling_resistance(pressure: float) -> float:
+    """Rolling-resistance coefficient of a pneumatic tire at low speed on a hard road, pressure [Pa]:
+    ``0.005 + 0.01 / p_bar`` (Gillespie, Fundamentals of Vehicle Dynamics, 1992, Ch. 4, passenger-car tires;
+    its speed term 0.0095 (V / 100 km/h)^2 / p_bar is < 1e-5 below 2 km/h)."""
+    return 0.005 + 0.01 / (pressure / 1e5)
+
+
+def hysteresis_rolling_resistance(half_width: float, radius: float, alpha: float) -> float:
+    """Rolling-resistance coefficient of a cylinder in line contact that loses the fraction ``alpha`` of the elastic
+    work of the leading half of its Hertz contact: ``(2 alpha / (3 pi)) a / r`` (Tabor's hysteresis theory; Johnson,
+    Contact Mechanics, 1985, Sec. 8.4: the moment of the leading half of the Hertz pressure, 2 W a / (3 pi))."""
+    return 2.0 * alpha / (3.0 * math.pi) * half_width / radius
+
+
 def tire_constants(K: float, K_lat_ratio: float, patch: float, eps: float) -> tuple[float, float, float]:
     """(patch / K, patch / K_lat, eps^2) bound by :func:`tire_law` and by the testbed's C step."""
     return patch / K, patch / (K * K_lat_ratio), eps * eps
@@ -49,7 +93,8 @@ def tire_constants(K: float, K_lat_ratio: float, patch: float, eps: float) -> tu
 def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: float, patch: float,
              eps: float, k_max: float) -> Callable[[float, float, float, float, float, float], tuple[float, float, float]]:
     """The terrain's tire law with its constants bound (called 4 times per physics step):
-    ``law(s_lon, s_lat, u, v_lon, normal, mu) -> (F_lon, F_lat, stiffness)``.
+    ``law(s_lon, s_lat, u, v_lon, normal, mu, ps) -> (F_lon, F_lat, stiffness)``; ``ps`` scales ``patch`` (1: the
+    patch as bound; the testbed binds 1 m and passes each wheel's patch length when the platform has a tire model).
 
     Tangential force (F_lon, F_lat) in the wheel frame on the vehicle at one contact, and the
     secant stiffness |F| / |s| [N s/m] used by the semi-implicit wheel-spin update (for a
@@ -66,7 +111,7 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
     hypot, exp = math.hypot, math.exp
     c_lon, c_lat, eps2 = tire_constants(K, K_lat_ratio, patch, eps)
 
-    def janosi(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float
+    def janosi(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float, ps: float = 1.0
                ) -> tuple[float, float, float]:
         if normal <= 0.0:
             return 0.0, 0.0, 0.0
@@ -79,8 +124,8 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
             v_ref = h
         if eps > v_ref:
             v_ref = eps
-        z_lon = s_lon * c_lon / v_ref
-        z_lat = s_lat * c_lat / v_ref
+        z_lon = s_lon * (c_lon * ps) / v_ref
+        z_lat = s_lat * (c_lat * ps) / v_ref
         z = hypot(z_lon, z_lat)
         frac = 0.5 * z if z < 1e-6 else 1.0 - (1.0 - exp(-z)) / z  # janosi_fraction(z, 1)
         a, b = (1.0 - frac) / z, frac / s
@@ -89,7 +134,7 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
             mag = k_max * s
         return -mag * (a * z_lon + b * s_lon), -mag * mu_lat_ratio * (a * z_lat + b * s_lat), mag / s
 
-    def coulomb(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float
+    def coulomb(s_lon: float, s_lat: float, u: float, v_lon: float, normal: float, mu: float, ps: float = 1.0
                 ) -> tuple[float, float, float]:
         if normal <= 0.0:
             return 0.0, 0.0, 0.0

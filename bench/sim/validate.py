@@ -19,7 +19,13 @@ the testbed implements -- never with an outcome that a paper claim then scores:
 * ``heightfield_iso8608_psd``: the rough ground's heightfield (bench/sim/ground.py) has the profile PSD of its
   ISO 8608 class, G_d(n0) (n / n0)^-2 (slope and level of the row periodogram);
 * ``motor_line_eq26``: the drive's torque at a few voltages and speeds against tau_s (V/V_nom - w_m/w_n),
-  clamped at K_T I_max and P_max / w_m.
+  clamped at K_T I_max and P_max / w_m;
+* ``static_wheel_loads_cg_offset``: at rest on the flat with the centre of mass at (x, y) from the geometric
+  centre, the four loads are the moment balance of four equal springs, W/4 (1 +- x/a +- y/b);
+* ``rolling_torque_tire_types``: constant speed on asphalt with the 50 psi and the solid tire: the torque balances
+  (mu_terrain + mu_tire) sum_i W_i r_i (the tire's rolling-resistance coefficient added to the terrain's);
+* ``loaded_rolling_radius_straight``: constant speed, equal loads, pneumatic 20 and 50 psi: v / w is the loaded
+  rolling radius r - delta/3, delta = W / (2 pi p sqrt(r b/2)) (toroidal-membrane tire, bench/sim/tire.py).
 
 Calibration checks (:func:`run_calibration`, ``--calibration``) compute what the papers' figures show
 -- chi over curvature ratio and speed (Wang 2015 Table 3), torque over Yu's 31 radii (Fig. 9), the
@@ -41,7 +47,8 @@ import numpy as np
 from bench.sim import simulate
 from bench.sim.drive import MotorConstants, motor_law
 from bench.sim.ground import ISO8608_CLASS_GD0, field_heights, iso8608_psd, profile_psd
-from bench.sim.testbed import GRAVITY
+from bench.sim.testbed import GRAVITY, rolling_coefficient
+from bench.sim.tire import tire_contact
 from bench.sim.soil import compaction_resistance, sinkage
 from bench.paths import SCENARIO_DIR
 from bench.spec import CommandSpec, Scenario, Segment, list_scenarios, load_scenario, load_terrain, replace
@@ -108,12 +115,22 @@ def _rel(got: float, expect: float) -> float:
     return abs(got / expect - 1.0)
 
 
+def loaded_radius(plat: Any, load: float | None = None) -> float:
+    """Left rolling radius under ``load`` [N] (default the mean static load m g / 4; the tire's radius is linear in the
+    load, so this is also the mean over four unequal static loads): r scale_l (1 - radius_coef W)."""
+    r = plat.wheel_radius * plat.wheel_radius_scale_l
+    if plat.tire_pressure <= 0.0 and plat.tire_modulus <= 0.0:
+        return r
+    w = plat.total_mass * GRAVITY / 4.0 if load is None else load
+    return r * (1.0 - tire_contact(plat.wheel_radius, plat.wheel_width, plat.tire_pressure, plat.tire_modulus)[1] * w)
+
+
 def saturated_speed(scn: Scenario) -> float:
     """Closed-form steady straight speed at full controller voltage on the flat: the DC-motor line (Yu 2010
     eq. (26), I = (V - K_B w_m) / R_a) at V_max = PWM (V_CC - U_loss) carrying the rolling load."""
     plat, m = scn.platform, MotorConstants.from_spec(scn.platform.motor)
-    r = plat.wheel_radius * plat.wheel_radius_scale_l
-    tau_side = scn.terrain.rolling_resistance * plat.total_mass * GRAVITY / 2 * r
+    r = loaded_radius(plat)
+    tau_side = rolling_coefficient(plat, scn.terrain) * plat.total_mass * GRAVITY / 2 * r
     current = tau_side / (m.n * m.gear * m.eff * m.K_T)
     return r * (m.v_max - m.R_a * current) / (m.K_B * m.gear)
 
@@ -138,11 +155,74 @@ def _rolling_torque(base: Scenario) -> Check:
     scn = load_scenario("straight_0p2_vinyl")
     d = _steady(simulate(scn, 0), 3.0)
     plat = scn.platform
-    expect = scn.terrain.rolling_resistance * plat.total_mass * GRAVITY * plat.wheel_radius * plat.wheel_radius_scale_l
+    expect = rolling_coefficient(plat, scn.terrain) * plat.total_mass * GRAVITY * loaded_radius(plat)
     got = float(np.nanmean(d["tau_l"]) + np.nanmean(d["tau_r"]))
     return Check("rolling_torque_straight", _rel(got, expect) < 0.02, round(got, 4),
                  f"tau_l + tau_r = mu_roll m g r = {expect:.4f} N m within 2%",
                  "force balance at constant speed (Yu 2010 Sec. V: mu_roll from the straight-line torque)")
+
+
+LOADS = ("truth_n_fl", "truth_n_rl", "truth_n_fr", "truth_n_rr")
+
+
+def static_loads(plat: Any) -> list[float]:
+    """Moment balance of a rigid body on four equal springs at (+-a, +-b): W/4 (1 + x x_i / a^2 + y y_i / b^2)
+    for the wheels fl, rl, fr, rr (the load plane through the four contacts; statically determinate with it)."""
+    a, b, w = plat.wheelbase / 2, plat.track / 2, plat.total_mass * GRAVITY
+    x, y = plat.cg_offset_x, plat.cg_offset_y
+    return [w / 4 * (1 + sx * x / a + sy * y / b) for sx, sy in ((1, 1), (-1, 1), (1, -1), (-1, -1))]
+
+
+def _static_loads() -> Check:
+    """At rest on vinyl, the P3-AT with its centre of mass moved to (-4, +3) cm (the platform's own offset, a few
+    mm, is below the tolerance): the simulated loads against the moment balance."""
+    scn = load_scenario("straight_0p2_vinyl", {"platform.cg_offset_x": -0.04, "platform.cg_offset_y": 0.03})
+    d = _steady(simulate(_with_command(scn, CommandSpec(segments=(Segment(2.0, 0.0, 0.0),)), 2.0), 0), 1.0)
+    got, expect = [float(np.nanmean(d[c])) for c in LOADS], static_loads(scn.platform)
+    err = max(abs(g - e) for g, e in zip(got, expect)) / (sum(expect) / 4)
+    return Check("static_wheel_loads_cg_offset", err < 0.01, {"loads": [round(g, 2) for g in got],
+                                                            "max_err_of_W4": round(err, 5)},
+                 "fl, rl, fr, rr = W/4 (1 +- x/a +- y/b) = " + ", ".join(f"{e:.2f}" for e in expect)
+                 + " N, each within 1 % of W/4", "static moment balance on four equal contact springs")
+
+
+def _rolling_torque_tires() -> Check:
+    got, exp, ok = {}, {}, True
+    for name in ("mandow_straight_asphalt_pneumatic_50psi", "mandow_straight_asphalt_solid"):
+        scn = load_scenario(name)
+        d = _steady(simulate(scn, 0), 4.0)
+        plat, loads = scn.platform, [float(np.nanmean(d[c])) for c in LOADS]
+        exp[name] = rolling_coefficient(plat, scn.terrain) * sum(w * loaded_radius(plat, w) for w in loads)
+        got[name] = float(np.nanmean(d["tau_l"]) + np.nanmean(d["tau_r"]))
+        ok = ok and _rel(got[name], exp[name]) < 0.02
+    return Check("rolling_torque_tire_types", ok, {k: round(v, 4) for k, v in got.items()},
+                 "tau_l + tau_r = (mu_terrain + mu_tire) sum W_i r_i = "
+                 + ", ".join(f"{v:.4f}" for v in exp.values()) + " N m within 2% (50 psi, solid; the terrain's "
+                 "mu alone is 9 % and 25 % above)", "force balance at constant speed with the tire's rolling resistance")
+
+
+def membrane_deflection(plat: Any, load: float) -> float:
+    """Deflection [m] of a toroidal membrane tire (crown r, section b/2, inflation p) whose contact ellipse carries
+    ``load`` at the inflation pressure: W / (2 pi p sqrt(r b/2)) (Wong 2001 Sec. 1.1; ellipse semi-axes sqrt(2 r delta),
+    sqrt(2 (b/2) delta))."""
+    return load / (2 * math.pi * plat.tire_pressure * math.sqrt(plat.wheel_radius * plat.wheel_width / 2))
+
+
+def _loaded_radius() -> Check:
+    got, exp, ok = {}, {}, True
+    for psi in (20, 50):
+        scn = load_scenario(f"mandow_straight_asphalt_pneumatic_{psi}psi",
+                            {"platform.cg_offset_x": 0.0, "platform.cg_offset_y": 0.0})
+        d = _steady(simulate(scn, 0), 4.0)
+        w = float(np.nanmean(d["truth_wl"] + d["truth_wr"])) / 2
+        got[psi] = float(np.nanmean(d["truth_vx"])) / w
+        plat = scn.platform
+        exp[psi] = plat.wheel_radius - membrane_deflection(plat, plat.total_mass * GRAVITY / 4) / 3
+        ok = ok and abs(got[psi] - exp[psi]) < 2e-5
+    return Check("loaded_rolling_radius_straight", ok, {f"{k}psi": round(v, 6) for k, v in got.items()},
+                 "v / w = r - delta/3 = " + ", ".join(f"{v:.6f}" for v in exp.values()) + " m within 0.02 mm "
+                 "(nominal 0.1075 m)", "toroidal-membrane tire deflection (Wong 2001 Sec. 1.1) and the effective "
+                 "rolling radius of a loaded tire (Jazar 2008 Sec. 3.3)")
 
 
 def _soil_compaction(base: Scenario) -> Check:
@@ -265,7 +345,10 @@ def run_checks(progress: Callable[[str], None] | None = None, quick: bool = Fals
                      ("friction limit: locked-wheel slide", _locked_slide),
                      ("motor line: eq. (26) with its clamps", lambda: _motor_line(base)),
                      ("closed form: Bekker compaction on the straight", lambda: _soil_compaction(base)),
-                     ("closed form: ISO 8608 heightfield PSD", _heightfield_psd)):
+                     ("closed form: ISO 8608 heightfield PSD", _heightfield_psd),
+                     ("moment balance: static wheel loads with a CoM offset", _static_loads),
+                     ("force balance: rolling torque with the tire types", _rolling_torque_tires),
+                     ("closed form: loaded rolling radius of a pneumatic tire", _loaded_radius)):
         say(text)
         checks.append(fn())
     return checks

@@ -297,7 +297,8 @@ def _parameter_table(ctx: Any, terrain: str) -> dict[str, float]:
         f"{b[0, 1]:.2f}], x_ICRr [{b[1, 0]:.2f}, {b[1, 1]:.2f}], y_ICRv [{b[2, 0]:.2f}, {b[2, 1]:.2f}] m, alpha "
         f"[{b[3, 0]:.2f}, {b[3, 1]:.2f}]; gene quantum {q[0] * 1000:.2f} mm (x_ICR), {q[2] * 1000:.2f} mm (y_ICRv), "
         f"{q[3]:.4f} (alpha). DE (scipy differential evolution, not in the paper) on the same segments. Testbed "
-        f"platforms: effective wheel radius scale left/right {scales} of nominal (what alpha identifies); "
+        f"platforms: wheel radius scale left/right {scales} of nominal, times each pneumatic wheel's loaded radius "
+        f"r - delta/3 (bench.sim.tire.tire_contact; part of what alpha identifies); "
         f"centre-of-mass offset (x, y) {cgs} m; the three tire platforms differ only in {', '.join(differ)}."))
     if terrain == "smooth_concrete":
         ctx.notes[tab] += (" Published chi for 50 psi is printed 0.7098; eq. (9) on the printed x_ICR gives "
@@ -392,9 +393,10 @@ def table3(ctx: Any) -> dict[str, float]:
     ctx.notes["table3"] += (
         " The DGPS position noise (1 cm per sample, white: 2e-4 m^2 per increment and axis) dominates the model "
         f"errors on 0.2 s segments. The testbed P3-AT has its centre of mass offset by ({plat.get('cg_offset_x', 0.0)},"
-        f" {plat.get('cg_offset_y', 0.0)}) m and wheel radius scales ({plat.get('wheel_radius_scale_l')}, "
-        f"{plat.get('wheel_radius_scale_r')}): no asymmetry for the five-parameter model to capture that the "
-        "two-parameter symmetric model of eqs. (11)-(12) misses. Paired margins: two standard errors of the "
+        f" {plat.get('cg_offset_y', 0.0)}) m (a testbed draw, issue 31) and wheel radius scales "
+        f"({plat.get('wheel_radius_scale_l')}, {plat.get('wheel_radius_scale_r')}) times each pneumatic wheel's loaded "
+        "radius: the left/right and front/rear asymmetry the five-parameter model can capture and the two-parameter "
+        "symmetric model of eqs. (11)-(12) cannot. Paired margins: two standard errors of the "
         f"per-segment difference, batch means of {MARGIN_BATCH} segments.")
     return out
 

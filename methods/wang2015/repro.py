@@ -264,8 +264,9 @@ def table3(ctx: Any) -> dict[str, float]:
         f"(smallest measured rotation {min(abs(g.phi) for g in ev.grid.values()):.2f} rad). chi per run by eq. (25) "
         "with the encoder travels (nominal wheel radius) and the laser rotation angle, eq. (15). sigma is the sample "
         f"std over {len(ev.speeds)} speeds; 'max relative error' the signed largest deviation from the mean. "
-        f"The testbed's tires roll on {scale:g} of the nominal radius, which raises chi by 1/{scale:g} against a "
-        f"radius-corrected measurement (see table3_corrected). Successive differences of the means: "
+        f"The testbed's tires roll on {scale:g} of the nominal radius times their loaded radius (issue 31: ~0.995 at "
+        f"20 psi), which raises chi by about 1/({scale:g} x 0.995) against a radius-corrected measurement (see "
+        f"table3_corrected, corrected by the scale only). Successive differences of the means: "
         f"{', '.join(f'{d:+.4f}' for d in steps)}; published relative drop from lambda 0 to 7: {pub_spread:.2%}, "
         f"reproduced {out['curvature_spread']:.2%}."))
     means = ", ".join(f"{out[f'chi_lambda{cr}']:.4f}" for cr in crs)

@@ -2,7 +2,7 @@
 the same physics-rate trace, bit for bit, on every branch the loop has (Janosi and Coulomb laws, a
 standing wheel held on a ramp, an initial speed, a controller slower than the physics, saturating
 motors, unequal wheel radii, the command map, friction patches steady and periodic, rate-limited
-references, a stiff terrain at its own physics step)."""
+references, a stiff terrain at its own physics step, the pneumatic and solid tire contacts with a CoM offset)."""
 from __future__ import annotations
 
 import pytest
@@ -27,6 +27,11 @@ CASES = {
         (-1e3, 1e3, -1e3, 0.0, 0.5, 0.0), (-1e3, 1e3, 0.0, 1e3, 0.7, 0.9))}),
     "stiff_tile_fine_step": ("wang_circle_grid", {"duration": 1.5}),
     "rate_limited_references": ("liu_small_radius", {"duration": 2.0}),
+    # issue 31: per-wheel patch and loaded radius from the load, a CoM offset, a tire's rolling resistance
+    "solid_tire_cg_offset": ("mandow_joystick_asphalt_solid", {"duration": 2.5}),
+    "pneumatic_50psi_rotation": ("mandow_rotation_smooth_concrete_pneumatic_50psi", {"duration": 2.0}),
+    "pneumatic_standing_on_ramp": ("ramp_wood_15", {"duration": 1.0, "platform.tire_pressure": 2.0e5,
+                                                     "platform.cg_offset_x": -0.05}),
 }
 
 

@@ -58,7 +58,7 @@ def fig10_13(ctx: Any) -> dict[str, float]:
     out["final_pos_err_rel"] = out["final_pos_err"] / path
     ctx.note("fig10_13", (
         "Model calibrated on the sweep (Table I, N = 31) and scored on this separate run. The model's vehicle "
-        "speed is r (w_l + w_r)/2 with the nominal radius (eq. (1)); the testbed's tires roll at 0.97 r, so "
+        "speed is r (w_l + w_r)/2 with the nominal radius (eq. (1)); the testbed's tires roll at their loaded radius (~0.995 r), so "
         "part of the velocity error and most of the along-track drift of the path (Figs. 12-13) is that radius "
         "effect, which the model does not have. rms_w_accel is over Yu's acceleration phase (t < 1 s), "
         "rms_w_steady after it. The *_open rows replay the testbed's logged torques in the same model without "

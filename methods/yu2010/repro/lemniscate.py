@@ -114,7 +114,7 @@ def fig22_29(ctx: Any) -> dict[str, float]:
         "same model without sliding friction (pure rolling, F_f = 0 as in Sec. III-B), the baseline of the torque "
         f"claim. The testbed's effective alpha along the "
         f"curve is {out['tb_alpha_eff']:.3f} (model: {q.alpha:.3f}); the model's speed uses the nominal radius, "
-        "the testbed rolls at 0.97 r."
+        "the testbed rolls at its tires' loaded radius (~0.995 r)."
     ))
     whole = lemniscate_xy(np.linspace(0.0, 2 * math.pi * 50.0, 800))
     # the testbed path placed on the curve: start at the curve point of t0, along its tangent

@@ -53,7 +53,7 @@ def fig14_16(ctx: Any) -> dict[str, float]:
     ctx.note("fig14_16", (
         "Open loop (Fig. 16): the testbed's logged side torques drive eq. (25) of the calibrated model, "
         "without the PID; its velocity error integrates every torque/resistance mismatch, which the closed "
-        "loop's PID removes (leaving the 3 % effective-radius offset). Much of the open-loop error here is a "
+        "loop's PID removes (leaving the tires' ~0.5 % loaded-radius offset). Much of the open-loop error here is a "
         "testbed logging effect: the logged torque is the motor torque at the start of each physics step, "
         "while the testbed's semi-implicit wheel update applies it corrected by (d tau/d w) dw (PID and "
         "back-EMF slope), which is large while the wheels accelerate. Over the start-up the logged torque "
@@ -108,7 +108,7 @@ def fig17(ctx: Any) -> dict[str, float]:
     ctx.note("fig17", (
         "Both saturate at the motor controller's voltage limit, eq. (27): PWM (V_CC - U_loss) = "
         f"{q['PWM']} x ({q['V_CC']} - {q['U_loss']}) V, less the armature drop; the model counts (27)'s current term "
-        "R_a I on top of (26)'s (see methods/yu2010/simulate.py), the testbed once, and the testbed rolls at 0.97 r."
+        "R_a I on top of (26)'s (see methods/yu2010/simulate.py), the testbed once, and the testbed rolls at its tires' loaded radius (~0.995 r)."
     ))
     fig = _new_figure(6, 3.6)
     ax = fig.add_subplot(1, 1, 1)

@@ -100,8 +100,8 @@ def table1(ctx: Any) -> dict[str, float]:
         "at R = 0.2 m, which every subset contains. Variation is Yu's abs(v(N=2) - v(N=31)) / v(N=2): it reproduces "
         "his 16.7 / 9.9 / 7.0 % from Table I (table1_definition), while dividing by v(N=31) would give 20.0 / 11.0 / "
         "7.5 %. Yu's Table II uses the N = 7 row. mu_roll comes from a straight 0.3 m/s calibration run: the "
-        "testbed's rolling torque acts at its effective radius 0.97 r, so the nominal-radius estimate is ~3 % "
-        f"below the terrain's {terr['rolling_resistance']:g}. alpha from the sweep's yaw rates (eq. (1)). RMS "
+        "testbed's rolling torque acts at its tires' loaded radius (~0.995 r), so the nominal-radius estimate is "
+        f"~0.5 % below the terrain's {terr['rolling_resistance']:g}. alpha from the sweep's yaw rates (eq. (1)). RMS "
         f"torque residual at N = 31: {out['rms_N31']:.3f} N m."
         + (" Quick mode: 4 s sweep runs (8 s in full mode)." if ctx.quick else "")
     ))
