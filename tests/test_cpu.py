@@ -2,6 +2,7 @@
 dispatch a process inherits no longer matters, and the ``skidbench`` program pins itself."""
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -26,10 +27,17 @@ def _run(env: dict[str, str]) -> tuple[str, str]:
     return state, digest
 
 
-def _has_avx512() -> bool:
-    from numpy._core._multiarray_umath import __cpu_features__
+def _native_features() -> dict[str, bool]:
+    """numpy's CPU features as an unpinned process sees them (``make test`` runs pytest under the pin, where the
+    disabled targets read False)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE")}
+    code = "import json; from numpy._core._multiarray_umath import __cpu_features__ as f; print(json.dumps(f))"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    return json.loads(out)
 
-    return bool(__cpu_features__.get("X86_V4", False))
+
+def _has_avx512() -> bool:
+    return bool(_native_features().get("X86_V4", False))
 
 
 @pytest.mark.skipif(not _has_avx512(), reason="needs a CPU with numpy's X86_V4 (AVX-512) dispatch to emulate two CPUs")
@@ -78,8 +86,6 @@ def test_python_m_bench_cpu_runs_a_command_pinned():
     code = "from bench.cpu import dispatch_state; print(dispatch_state())"
     out = subprocess.run([sys.executable, "-m", "bench.cpu", sys.executable, "-c", code], cwd=REPO, env=env,
                          capture_output=True, text=True, check=True).stdout.split()
-    from numpy._core._multiarray_umath import __cpu_features__
-
-    assert out[-1] == ("baseline" if __cpu_features__.get("AVX2", False) else "native:openblas")
+    assert out[-1] == ("baseline" if _native_features().get("AVX2", False) else "native:openblas")
     r = subprocess.run([sys.executable, "-m", "bench.cpu"], cwd=REPO, env=env, capture_output=True, text=True)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
