@@ -215,6 +215,13 @@ class Platform:
     # ... and its limits [rad/s] on the mapped mean speed and half-difference (inf = none)
     command_limit_mean: float = math.inf
     command_limit_diff: float = math.inf
+    # ... its acceleration limits [rad/s^2] on the mean speed and half-difference (ROS diff_drive_controller's
+    # linear and angular acceleration limits, in wheel units; inf = none)
+    command_accel_mean: float = math.inf
+    command_accel_diff: float = math.inf
+    # ... and the drive's wheel-speed limit [rad/s]: both sides scaled by one factor so that the faster one
+    # is at the limit (the turn's curvature is kept; Clearpath husky_base limitDifferentialSpeed; inf = none)
+    wheel_speed_limit: float = math.inf
     payload: float = 0.0  # extra mass at the CG [kg]
     # tire contact (bench/sim/tire.py tire_contact): 0, 0 = none (patch (L - C)/2 of Yu's Table II, nominal radius);
     # a pneumatic tire's inflation pressure [Pa] (tire_pressure_psi in files): the toroidal-membrane contact gives
@@ -253,6 +260,9 @@ class Platform:
         "command_gain_diff": (lambda x: 0 < x <= 5, "in (0, 5]"),
         "command_limit_mean": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
         "command_limit_diff": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
+        "command_accel_mean": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
+        "command_accel_diff": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
+        "wheel_speed_limit": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
         "payload": (_nonneg, ">= 0 kg"),
         "tire_pressure": (lambda x: 0 <= x <= 1e6, "in [0, 1e6] Pa (0: no pneumatic tire; 145 psi)"),
         "tire_modulus": (lambda x: 0 <= x <= 1e9, "in [0, 1e9] Pa (0: no solid tire)"),

@@ -29,6 +29,10 @@ def _mu(scn: str, scale: float) -> dict:
     return {"terrain.mu_sa": t.mu_sa * scale, "terrain.mu_op": t.mu_op * scale}
 
 
+def _motor(scn: str):
+    return load_scenario(scn).platform.motor
+
+
 # effect, scenario, hidden overrides, seed, hidden parameter values (catalogue parameter names)
 CASES = [
     ("rolling_resistance", JAN, {"terrain.rolling_resistance": 0.075}, 101, {"rolling_resistance": 0.075}),
@@ -48,11 +52,18 @@ CASES = [
      {"gain_sum": 0.92, "gain_diff": 1.25}),
     ("command_limit", COUL, {"platform.command_limit_mean": 3.6, "platform.command_limit_diff": 1.3}, 113,
      {"limit_mean": 3.6, "limit_diff": 1.3}),
+    ("wheel_speed_limit", COUL, {"platform.wheel_speed_limit": 4.2}, 115, {"limit": 4.2}),
+    ("command_accel", COUL, {"platform.command_accel_mean": 3.0, "platform.command_accel_diff": 2.0}, 116,
+     {"accel_mean": 3.0, "accel_diff": 2.0}),
+    ("lateral_friction", COUL, {"terrain.mu_lat_ratio": 1.3}, 117, {"mu_lat_ratio": 1.3}),
+    ("motor_torque", JAN, {"platform.motor.stall_torque": _motor(JAN).stall_torque * 0.6,
+                           "platform.motor.max_current": _motor(JAN).max_current * 0.6}, 118, {"torque_scale": 0.6}),
     ("encoder_scale", JAN, {"platform.sensors.encoder.scale_error_l": -0.04}, 110, {"scale_error_l": -0.04}),
     ("gyro_bias", COUL, {"platform.sensors.imu.gyro_bias_z": -0.015}, 111, {"gyro_bias_z": -0.015}),
 ]
 DEFAULT_RUN = {"rolling_resistance", "shear_displacement", "wheel_radius", "motor_saturation", "encoder_scale",
-               "command_limit", "powertrain_lag"}
+               "command_limit", "powertrain_lag", "wheel_speed_limit", "command_accel", "lateral_friction",
+               "motor_torque"}
 
 
 def _measured(sim, scenario: str, seed: int, hidden: dict):

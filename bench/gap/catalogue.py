@@ -158,6 +158,33 @@ def _cmd_limit_neutral(scn):
     return lim if all(map(math.isfinite, lim)) else None
 
 
+def _wheel_limit_spec(scn, v):
+    return {"platform.wheel_speed_limit": v[0]}
+
+
+def _wheel_limit_neutral(scn):
+    lim = scn.platform.wheel_speed_limit
+    return (lim,) if math.isfinite(lim) else None
+
+
+def _cmd_accel_spec(scn, v):
+    return {"platform.command_accel_mean": v[0], "platform.command_accel_diff": v[1]}
+
+
+def _cmd_accel_neutral(scn):
+    acc = (scn.platform.command_accel_mean, scn.platform.command_accel_diff)
+    return acc if all(map(math.isfinite, acc)) else None
+
+
+def _torque_spec(scn, v):
+    m = scn.platform.motor
+    return {"platform.motor.stall_torque": m.stall_torque * v[0], "platform.motor.max_current": m.max_current * v[0]}
+
+
+def _lat_spec(scn, v):
+    return {"terrain.mu_lat_ratio": v[0]}
+
+
 def _enc_spec(scn, v):
     return {"platform.sensors.encoder.scale_error_l": v[0], "platform.sensors.encoder.scale_error_r": v[1]}
 
@@ -294,6 +321,50 @@ CATALOGUE: tuple[Effect, ...] = (
         "turns, while the command asks for more; unchanged below the limits", "physics",
         _cmd_limit_neutral, _phys(_cmd_limit_spec), _cmd_limit_spec,
         probe_grid=((2.0, 1.0), (4.0, 1.0), (4.0, 2.0), (8.0, 2.0), (8.0, 4.0), (50.0, 1.0), (2.0, 50.0))),
+    Effect(
+        "wheel_speed_limit", "the drive's wheel-speed limit",
+        "The drive scales both sides' wheel-speed references by one factor so that the faster side is at "
+        "most limit [rad/s] (Clearpath husky_base limitDifferentialSpeed: max_speed 1.0 m/s): the path's "
+        "curvature is kept, its speed is not.",
+        (Param("limit", "rad/s", 1.0, 50.0, 0.05, log=True),),
+        ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y", "ref_yaw"),
+        "the faster wheel flat at one speed whatever the command, the slower one in proportion (the ratio "
+        "of the two wheel speeds as commanded); unchanged below the limit", "physics",
+        _wheel_limit_neutral, _phys(_wheel_limit_spec), _wheel_limit_spec,
+        probe_grid=((4.0,), (6.0,), (9.0,), (14.0,))),
+    Effect(
+        "command_accel", "the robot's own acceleration limits",
+        "The robot's velocity controller limits the rate of change of the (mapped) mean wheel speed to "
+        "accel_mean and of its half-difference to accel_diff [rad/s^2] (ROS diff_drive_controller's linear "
+        "and angular acceleration limits, in wheel units).",
+        (Param("accel_mean", "rad/s^2", 0.5, 200.0, 0.05, log=True),
+         Param("accel_diff", "rad/s^2", 0.5, 200.0, 0.05, log=True)),
+        ("enc_wl", "enc_wr", "imu_gz", "imu_ax", "ref_x", "ref_y", "ref_yaw"),
+        "after each command step the wheel speeds' mean and difference ramp linearly (a constant slope, "
+        "no corner delay, no exponential tail), the turn typically slower than the speed; steady states "
+        "unchanged", "physics",
+        _cmd_accel_neutral, _phys(_cmd_accel_spec), _cmd_accel_spec,
+        probe_grid=((3.0, 3.0), (10.0, 3.0), (3.0, 10.0), (10.0, 10.0), (30.0, 3.0), (30.0, 30.0))),
+    Effect(
+        "motor_torque", "drive torque capability",
+        "Each side's motor stronger or weaker than specified by torque_scale: stall torque and current "
+        "limit scaled together (the torque available at every wheel speed below a power limit; the "
+        "no-load speed and any power limit kept).",
+        (Param("torque_scale", "-", 0.2, 6.0, 0.05, log=True),),
+        ("enc_wl", "enc_wr", "imu_gz", "tau_l", "tau_r", "i_l", "i_r"),
+        "the outer wheel of a tight turn (the side that needs the most torque at speed) falls short of "
+        "its command in the weaker model and tracks it in the stronger; straight driving unchanged",
+        "physics",
+        lambda s: (1.0,), _phys(_torque_spec), _torque_spec),
+    Effect(
+        "lateral_friction", "lateral friction anisotropy",
+        "Ratio mu_lat/mu_lon of the tire-ground friction across and along the wheel (tread pattern, "
+        "sidewall scrubbing): sets how hard the treads resist the lateral sliding of a skid-steer turn.",
+        (Param("mu_lat_ratio", "-", 0.3, 4.0, 0.1),),
+        ("imu_gz", "ref_yaw", "ref_x", "ref_y", "tau_l", "tau_r"),
+        "turn rate per wheel-speed difference (chi, the ICR spread) scales with the ratio: less yaw and "
+        "more turning torque above 1; straight driving unchanged", "physics",
+        lambda s: (s.terrain.mu_lat_ratio,), _phys(_lat_spec), _lat_spec),
     Effect(
         "encoder_scale", "encoder scale error",
         "Fractional scale error of each side's encoder (wrong counts per revolution, gearing).",

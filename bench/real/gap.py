@@ -38,6 +38,17 @@ repeated.  The per-side powertrain lag (``powertrain_lag``, DRIVE's first-order 
 whether the large fitted dead time (0.43 s) is a lag in disguise: on the bounded fit block it lowers the in-sample
 cost more than the dead time (1506 vs 3434 beside command_limit) but at tau_r on its 1.5 s bound, and its 2-fold
 held-out cost is worse (4872 vs 2531), so the selection keeps the dead time and the held-out result is unchanged.
+Issue 32 added the robot's acceleration limits (``command_accel``), the drive's wheel-speed limit
+(``wheel_speed_limit``), drive torque capability (``motor_torque``) and lateral friction anisotropy
+(``lateral_friction``).  On the calibration half the steady windows read like the Husky's ROS chain (mean wheel speed
+~1.85 x and half-difference ~0.8 x the logged command, the half-difference clipped near 3.1 rad/s, the faster wheel
+at 6.06 rad/s = 1.0 m/s with the other in proportion), and the testbed's Husky motor (an engineering estimate) cannot
+drive the outer wheel of those turns past ~2.9 rad/s (measured ~5); that chain with a 3x motor and mu_lat 2 costs
+3439 on calibration steps 0-2 (nominal 37434, command_limit + 0.43 s delay 13482), but no bounded greedy selection
+assembles it: on 2 fit steps with up to 4 effects the selection keeps command_limit + actuator_delay (third round
+rejected), on 3 fit steps it picks command_accel + rolling_resistance and the held-out cost is worse (10764 vs
+8966).  The held-out cost moved 9060 -> 8966 only through the replay fix (a moving start holds its speed through
+the delay).
 """
 from __future__ import annotations
 

@@ -134,3 +134,30 @@ def first_order_lag(ref: np.ndarray, dt: float, tau: float, initial: float = 0.0
     u = np.asarray(ref, float)
     y, _ = lfilter([alpha], [1.0, alpha - 1.0], u, zi=[(1.0 - alpha) * initial])
     return y
+
+
+def rate_limit(ref: np.ndarray, dt: float, accel: float, initial: float = 0.0) -> np.ndarray:
+    """``ref`` followed at a rate of at most ``accel`` [unit/s] per physics step ``dt``, from ``initial``: the
+    velocity controller's acceleration limit (ROS diff_drive_controller's ``SpeedLimiter.limit_acceleration``:
+    ``y_k = y_{k-1} + clip(u_k - y_{k-1}, -accel dt, accel dt)``).  ``accel = inf`` returns ``ref`` itself."""
+    if not math.isfinite(accel):
+        return ref
+    u = np.asarray(ref, float).tolist()
+    step = accel * dt
+    y, prev = [0.0] * len(u), float(initial)
+    for k, uk in enumerate(u):
+        d = uk - prev
+        prev = prev + (d if -step <= d <= step else math.copysign(step, d))
+        y[k] = prev
+    return np.array(y)
+
+
+def wheel_speed_scale(ref_l: np.ndarray, ref_r: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Both sides scaled by one factor so that the faster one is at most ``limit`` [rad/s]: the ratio of the two
+    wheel speeds, hence the path's curvature, is kept (Clearpath husky_base ``limitDifferentialSpeed``).
+    ``limit = inf`` returns the references themselves."""
+    if not math.isfinite(limit):
+        return ref_l, ref_r
+    big = np.maximum(np.abs(ref_l), np.abs(ref_r))
+    k = np.where(big > limit, limit / np.maximum(big, 1e-300), 1.0)
+    return ref_l * k, ref_r * k

@@ -37,7 +37,7 @@ from typing import Callable
 
 import numpy as np
 
-from bench.sim.commands import first_order_lag, wheel_reference
+from bench.sim.commands import first_order_lag, rate_limit, wheel_reference, wheel_speed_scale
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
 from bench.sim.soil import compaction_resistance, sinkage, soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_contact, tire_law
@@ -214,13 +214,15 @@ def _wheel_frame(fwd: tuple[float, float, float], n: tuple[float, float, float]
 
 
 def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], list[float]]:
-    """Per-step wheel-speed references (rad/s) as the PID sees them: delayed by the actuator delay,
-    mapped by the robot's own command mapping (``Platform.command_gain_sum/diff``: mean speed and
-    half-difference scaled, then clipped to ``command_limit_mean/diff``; skipped at gains 1 and no
-    limits, so that the command passes bit for bit), 0 before the
-    command starts (Python floats: faster scalar math in the loop)."""
-    plat = scn.platform
-    t_cmd = np.arange(n_steps + 1) * scn.dt - plat.actuator_delay
+    """Per-step wheel-speed references (rad/s) as the PID sees them, through the robot's own velocity
+    controller: the command delayed by the actuator delay; mapped (``Platform.command_gain_sum/diff``: mean
+    speed and half-difference scaled) and clipped (``command_limit_mean/diff``); before the delayed command
+    starts, the initial wheel speeds (0 from rest); the mean and half-difference rate-limited
+    (``command_accel_mean/diff``); both sides scaled to the wheel-speed limit (``wheel_speed_limit``); each side's
+    powertrain lag.  Each stage is skipped at its default (gains 1, no limits, no lag), so that the command
+    passes bit for bit.  Python floats out (faster scalar math in the loop)."""
+    plat, dt = scn.platform, scn.dt
+    t_cmd = np.arange(n_steps + 1) * dt - plat.actuator_delay
     ref_l, ref_r = wheel_reference(np.maximum(t_cmd, 0.0), scn.command, plat, seed)
     g_sum, g_diff = plat.command_gain_sum, plat.command_gain_diff
     lim_mean, lim_diff = plat.command_limit_mean, plat.command_limit_diff
@@ -228,11 +230,18 @@ def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], li
         mean = np.clip(g_sum * 0.5 * (ref_l + ref_r), -lim_mean, lim_mean)
         half = np.clip(g_diff * 0.5 * (ref_r - ref_l), -lim_diff, lim_diff)
         ref_l, ref_r = mean - half, mean + half
-    ref_l, ref_r = np.where(t_cmd < 0, 0.0, ref_l), np.where(t_cmd < 0, 0.0, ref_r)
-    # per-side powertrain lag (DRIVE), from the initial wheel speed (_preload_initial_speed's)
+    # the initial wheel speeds (_preload_initial_speed's) until the delayed command starts
     v0, r = scn.initial_speed, plat.wheel_radius
-    ref_l = first_order_lag(ref_l, scn.dt, plat.powertrain_tau_l, v0 / (r * plat.wheel_radius_scale_l))
-    ref_r = first_order_lag(ref_r, scn.dt, plat.powertrain_tau_r, v0 / (r * plat.wheel_radius_scale_r))
+    w0_l, w0_r = v0 / (r * plat.wheel_radius_scale_l), v0 / (r * plat.wheel_radius_scale_r)
+    ref_l, ref_r = np.where(t_cmd < 0, w0_l, ref_l), np.where(t_cmd < 0, w0_r, ref_r)
+    if math.isfinite(plat.command_accel_mean) or math.isfinite(plat.command_accel_diff):
+        mean = rate_limit(0.5 * (ref_l + ref_r), dt, plat.command_accel_mean, 0.5 * (w0_l + w0_r))
+        half = rate_limit(0.5 * (ref_r - ref_l), dt, plat.command_accel_diff, 0.5 * (w0_r - w0_l))
+        ref_l, ref_r = mean - half, mean + half
+    ref_l, ref_r = wheel_speed_scale(ref_l, ref_r, plat.wheel_speed_limit)
+    # per-side powertrain lag (DRIVE), from the initial wheel speed
+    ref_l = first_order_lag(ref_l, dt, plat.powertrain_tau_l, w0_l)
+    ref_r = first_order_lag(ref_r, dt, plat.powertrain_tau_r, w0_r)
     return ref_l.tolist(), ref_r.tolist()
 
 

@@ -1,0 +1,133 @@
+"""Closed-form checks of the testbed effects added to the gap catalogue for real robots (issue 32): the robot's
+own acceleration limits (``command_accel``), the drive's wheel-speed limit (``wheel_speed_limit``), lateral
+friction anisotropy (``lateral_friction``), and the initial wheel speeds held while a delayed command has not
+arrived yet.  Expectations are closed forms (a rate-limited ramp, a proportional scaling, the rigid-body kinematics
+of an anisotropic Coulomb spot turn), not numbers of a previous run."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from bench.gap import catalogue as C
+from bench.sim.testbed import _references
+from bench.spec import CommandSpec, Segment, SpecError, load_scenario
+
+
+def _step_scenario(wl: float, wr: float, duration: float = 3.0, **platform):
+    """gap_test_coulomb's platform driven by one wheel-speed step (wl, wr) at t = 0, no ramp."""
+    scn = load_scenario("gap_test_coulomb")
+    cmd = CommandSpec(kind="wheel_speeds", units="rad/s", segments=(Segment(duration + 1.0, wl, wr),), accel=0.0)
+    return dataclasses.replace(scn, command=cmd, duration=duration,
+                               platform=dataclasses.replace(scn.platform, **platform))
+
+
+def test_command_accel_ramps_mean_and_difference_at_their_limits():
+    """A step (wl, wr) = (2, 6) rad/s from rest, mean 4 and half-difference 2: with acceleration limits of 5 and
+    1.6 rad/s^2 the mean reaches 4 at t = 0.8 s and the half-difference 2 at t = 1.25 s, each along a straight
+    line min(a t, target) (t = (k + 1) dt after the k-th step, as the rate limiter moves once per step)."""
+    scn = _step_scenario(2.0, 6.0, command_accel_mean=5.0, command_accel_diff=1.6)
+    n = int(round(2.0 / scn.dt))
+    ref_l, ref_r = map(np.asarray, _references(scn, 0, n))
+    t = np.arange(n + 1) * scn.dt + scn.dt
+    mean, half = 0.5 * (ref_l + ref_r), 0.5 * (ref_r - ref_l)
+    np.testing.assert_allclose(mean, np.minimum(5.0 * t, 4.0), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(half, np.minimum(1.6 * t, 2.0), rtol=0, atol=1e-9)
+    plain = _references(_step_scenario(2.0, 6.0), 0, n)  # the default (inf) leaves the command as it is
+    assert plain[0] == [2.0] * (n + 1) and plain[1] == [6.0] * (n + 1)
+    assert C.get("command_accel").spec_overrides(scn, (5.0, 1.6)) == {
+        "platform.command_accel_mean": 5.0, "platform.command_accel_diff": 1.6}
+
+
+def test_wheel_speed_limit_scales_both_sides_and_keeps_their_ratio():
+    """A command (-3, 8) rad/s under a 5 rad/s limit: the faster side at 5 and the other at -3 x 5/8 (the same
+    curvature), for both signs; a command within the limit passes unchanged."""
+    for wl, wr in ((-3.0, 8.0), (-8.0, 3.0), (8.0, 7.5)):
+        scn = _step_scenario(wl, wr, wheel_speed_limit=5.0)
+        ref_l, ref_r = _references(scn, 0, 10)
+        k = 5.0 / max(abs(wl), abs(wr))
+        assert ref_l[-1] == pytest.approx(wl * k, abs=1e-12) and ref_r[-1] == pytest.approx(wr * k, abs=1e-12)
+    assert _references(_step_scenario(2.0, -4.5, wheel_speed_limit=5.0), 0, 10)[1][-1] == -4.5
+
+
+def test_wheel_speed_limit_holds_the_faster_wheel_in_the_testbed(sim):
+    """End to end: the simulated encoders of a turn commanded at (2, 6) rad/s under a 4 rad/s limit read 4 and
+    4/3 rad/s in steady state (the closed form of the scaling), where the nominal run reads (2, 6)."""
+    scn = _step_scenario(2.0, 6.0, duration=4.0, wheel_speed_limit=4.0)
+    from bench.sim import simulate
+
+    run = simulate(scn, 0)
+    for c, expect in (("enc_wl", 4.0 / 3.0), ("enc_wr", 4.0)):
+        t, v = run.samples(c)
+        assert float(np.mean(v[t > 2.5])) == pytest.approx(expect, rel=0.02), c
+
+
+@pytest.mark.parametrize("k", [0.7, 1.6])
+def test_lateral_friction_sets_chi_of_a_coulomb_spot_turn(k):
+    """Spot turn on Coulomb ground with mu_lat = k mu_lon at the four contacts (+-a, +-b): the yaw moment of the
+    sliding forces vanishes when w (k a^2 + b^2) = b u (u the tread speed), so chi = u / (w b) = 1 + k (a/b)^2
+    and w = b u / (b^2 + k a^2) (k = 1: validate-testbed's coulomb_rotation_closed_form)."""
+    from bench.sim import simulate
+    from bench.sim.validate import chi_eq25
+
+    base = load_scenario("gap_test_coulomb")
+    terr = dataclasses.replace(base.terrain, model="coulomb", mu_lat_ratio=k)
+    run = simulate(dataclasses.replace(base, terrain=terr, command=CommandSpec(kind="rotation", v=0.2),
+                                       duration=5.0), 0)
+    a, b = base.platform.wheelbase / 2, base.platform.track / 2
+    assert chi_eq25(run.data, base.platform, 2.5) == pytest.approx(1 + k * (a / b) ** 2, rel=0.02)
+    d = run.data[run.data["t"] >= 2.5]
+    u = base.platform.wheel_radius * base.platform.wheel_radius_scale_r * float(d["truth_wr"].mean())
+    assert float(d["truth_wz"].mean()) == pytest.approx(b * u / (b * b + k * a * a), rel=0.02)
+    assert C.get("lateral_friction").spec_overrides(base, (k,)) == {"terrain.mu_lat_ratio": k}
+
+
+def test_a_moving_start_holds_its_speed_until_the_delayed_command_arrives():
+    """With an actuator delay d, the references before t = d are the initial wheel speeds v0 / r_eff (the robot keeps
+    doing what it did), not 0 (which braked every replayed moving step for d seconds); from rest they stay 0."""
+    scn = dataclasses.replace(_step_scenario(1.0, 3.0, actuator_delay=0.2), initial_speed=0.4)
+    ref_l, ref_r = map(np.asarray, _references(scn, 0, int(round(0.5 / scn.dt))))
+    t = np.arange(ref_l.size) * scn.dt
+    plat = scn.platform
+    before = t < 0.2 - 1e-9
+    assert np.allclose(ref_l[before], 0.4 / (plat.wheel_radius * plat.wheel_radius_scale_l), rtol=0, atol=1e-12)
+    assert np.allclose(ref_r[before], 0.4 / (plat.wheel_radius * plat.wheel_radius_scale_r), rtol=0, atol=1e-12)
+    assert np.all(ref_l[~before] == 1.0) and np.all(ref_r[~before] == 3.0)
+    rest = _references(_step_scenario(1.0, 3.0, actuator_delay=0.2), 0, ref_l.size - 1)
+    assert set(np.asarray(rest[0])[before]) == {0.0}
+
+
+@pytest.mark.parametrize("field,value", [("command_accel_mean", 0.0), ("command_accel_diff", -1.0),
+                                         ("wheel_speed_limit", 0.0)])
+def test_limits_must_be_positive(field, value):
+    with pytest.raises(SpecError, match=field):
+        load_scenario("gap_test_coulomb", {f"platform.{field}": value})
+
+
+@pytest.mark.parametrize("k", [0.6, 2.5])
+def test_motor_torque_scales_the_motor_line_at_every_speed(k):
+    """``motor_torque`` scales stall torque and current limit by k: on the DC-motor line (Yu 2010 eq. (26),
+    I = (V - K_B g w) / R_a with R_a = V_nom K_T / tau_stall, clipped at I_max) the wheel torque is k times the
+    nominal motor's at every voltage and wheel speed, in the linear part and at the current limit alike (the
+    Husky's motor, which has no power limit)."""
+    from bench.sim.drive import MotorConstants, motor_law
+    from bench.spec import replace
+
+    scn = load_scenario("real_husky_asphalt")
+    assert scn.platform.motor.max_power == 0.0
+    eff = C.get("motor_torque")
+    scaled = replace(scn, **eff.spec_overrides(scn, (k,)))
+    base = motor_law(MotorConstants.from_spec(scn.platform.motor))
+    law = motor_law(MotorConstants.from_spec(scaled.platform.motor))
+    m = scn.platform.motor
+    clipped = 0
+    for volt in (-20.0, 2.0, 6.0, 22.8):
+        for w in (-5.0, 0.0, 1.0, 4.0, 7.5):
+            tb, ib, _ = base(volt, w)
+            tk, ik, _ = law(volt, w)
+            assert tk == pytest.approx(k * tb, rel=1e-9, abs=1e-12) and ik == pytest.approx(k * ib, rel=1e-9, abs=1e-12)
+            clipped += abs(ib) == m.max_current
+    assert clipped > 0  # the current-limited branch is exercised (full voltage against a reversing wheel)
+    assert eff.neutral(scn) == (1.0,)
