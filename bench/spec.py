@@ -24,6 +24,7 @@ from typing import Any, Mapping
 
 from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
 from bench.schema import SpecError, build
+from bench.sensor_spec import EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec
 from bench.sources import Source, Sources, default_sources, file_sources, parameters
 
 
@@ -94,85 +95,6 @@ class PidSpec:
         "rate_hz": (_positive, "> 0"),
         "gain_scale": (_positive, "> 0"),
     }
-
-
-@dataclass(frozen=True)
-class EncoderSpec:
-    counts_per_rev: int = 8192  # Wang 2015 Sec. 3.2 (at the wheel)
-    rate_hz: float = 100.0
-    scale_error_l: float = 0.0  # fractional scale error of the left encoder (gap catalogue)
-    scale_error_r: float = 0.0
-    _checks = {
-        "counts_per_rev": (lambda x: x > 0, "> 0"),
-        "rate_hz": (_positive, "> 0"),
-        "scale_error_l": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
-        "scale_error_r": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
-    }
-
-
-@dataclass(frozen=True)
-class ImuSpec:
-    rate_hz: float = 125.0  # Yi 2009 Sec. VI
-    accel_noise: float = 0.02  # white noise std per sample [m/s^2]
-    gyro_noise: float = 0.002  # [rad/s]
-    accel_bias_walk: float = 1e-4  # bias random walk std per sqrt(s) [m/s^2/sqrt(s)]
-    gyro_bias_walk: float = 1e-5  # [rad/s/sqrt(s)]
-    gyro_bias_z: float = 0.0  # constant gyro z bias [rad/s] (gap catalogue)
-    saturation_accel: float = 80.0
-    saturation_gyro: float = 8.0
-    _checks = {k: (_nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
-        "rate_hz": (_positive, "> 0"),
-        "saturation_accel": (_positive, "> 0"),
-        "saturation_gyro": (_positive, "> 0"),
-        "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
-    }
-
-
-@dataclass(frozen=True)
-class GnssSpec:
-    rate_hz: float = 5.0
-    pos_noise: float = 0.02  # [m]
-    vel_noise: float = 0.02  # [m/s]
-    yaw_noise: float = 0.01  # [rad]
-    drift_walk: float = 0.0  # random walk of the position error [m/sqrt(s)] (Liu: initial drift)
-    initial_drift: float = 0.0  # [m] offset at t = 0 decaying with drift_tau
-    drift_tau: float = 30.0  # [s]
-    dropout_prob: float = 0.0  # probability a sample is missing
-    outages: tuple[tuple[float, float], ...] = ()  # [(t_start, t_end), ...] with no fix
-    _checks = {
-        "rate_hz": (_positive, "> 0"),
-        "pos_noise": (_nonneg, ">= 0"),
-        "vel_noise": (_nonneg, ">= 0"),
-        "yaw_noise": (_nonneg, ">= 0"),
-        "drift_walk": (_nonneg, ">= 0"),
-        "initial_drift": (_nonneg, ">= 0"),
-        "drift_tau": (_positive, "> 0"),
-        "dropout_prob": (lambda x: 0 <= x < 1, "in [0, 1)"),
-    }
-
-
-@dataclass(frozen=True)
-class ReferenceSpec:
-    """External 'ground-truth' sensor of a paper: vision (Yi), laser (Wang), DGPS (Liu)."""
-
-    kind: str = "laser"
-    rate_hz: float = 135.0
-    pos_noise: float = 0.003  # [m]
-    yaw_noise: float = 0.002  # [rad]
-    _checks = {
-        "kind": (lambda x: x in ("vision", "laser", "dgps", "mocap", "icp"), "one of vision, laser, dgps, mocap, icp"),
-        "rate_hz": (_positive, "> 0"),
-        "pos_noise": (_nonneg, ">= 0"),
-        "yaw_noise": (_nonneg, ">= 0"),
-    }
-
-
-@dataclass(frozen=True)
-class SensorSpec:
-    encoder: EncoderSpec = field(default_factory=EncoderSpec)
-    imu: ImuSpec = field(default_factory=ImuSpec)
-    gnss: GnssSpec = field(default_factory=GnssSpec)
-    reference: ReferenceSpec = field(default_factory=ReferenceSpec)
 
 
 @dataclass(frozen=True)

@@ -44,11 +44,12 @@ def test_ramp_static_force_balance():
     n = d[["truth_n_fl", "truth_n_rl", "truth_n_fr", "truth_n_rr"]].mean()
     # normal loads carry the weight component normal to the slope
     assert n.sum() == pytest.approx(m * G * math.cos(beta), rel=0.01)
-    # moment balance about the CoM: (N_rear - N_front) a = m g sin(beta) h
-    a = scn.platform.wheelbase / 2
+    # moment balance about the CoM at x_c ahead of the centre, height h: N_r (a + x_c) - N_f (a - x_c) =
+    # m g sin(beta) h, so (N_rear - N_front) a = m g (sin(beta) h - cos(beta) x_c)
+    a, x_c = scn.platform.wheelbase / 2, scn.platform.cg_offset_x
     h = scn.platform.cg_height
     transfer = (n.truth_n_rl + n.truth_n_rr) - (n.truth_n_fl + n.truth_n_fr)
-    assert transfer == pytest.approx(m * G * math.sin(beta) * h / a, rel=0.05)
+    assert transfer == pytest.approx(m * G * (math.sin(beta) * h - math.cos(beta) * x_c) / a, rel=0.05)
     # the robot holds its position on the slope (motor torque balances gravity)
     assert abs(d.truth_vx).max() < 0.01
     hold = m * G * math.sin(beta) / 2 * scn.platform.wheel_radius * scn.platform.wheel_radius_scale_l
@@ -60,7 +61,9 @@ def test_coulomb_pure_rotation_closed_form():
     """Coulomb friction, equal loads, point contacts: omega = b u / (a^2 + b^2), chi = 1 + (a/b)^2."""
     base = load_scenario("circle_vinyl")
     terr = dataclasses.replace(base.terrain, model="coulomb", mu_lat_ratio=1.0)
-    scn = dataclasses.replace(base, terrain=terr, command=CommandSpec(kind="rotation", v=0.15), duration=5.0)
+    plat = dataclasses.replace(base.platform, cg_offset_x=0.0, cg_offset_y=0.0)  # equal loads (the P3-AT's is not 0)
+    scn = dataclasses.replace(base, platform=plat, terrain=terr, command=CommandSpec(kind="rotation", v=0.15),
+                              duration=5.0)
     run = simulate(scn, 0)
     a, b = scn.platform.wheelbase / 2, scn.platform.track / 2
     assert chi_eq25(run.data, scn.platform, 2.5) == pytest.approx(1 + (a / b) ** 2, rel=0.02)
