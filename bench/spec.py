@@ -330,6 +330,8 @@ class Scenario:
     log_rate_hz: float = 100.0
     initial_speed: float = 0.0  # [m/s] forward speed at t = 0 (Yu's ramps)
     initial_yaw: float = 0.0
+    initial_yaw_rate: float = 0.0  # [rad/s] chassis yaw rate at t = 0 (bench.sim.startup: a run that starts in a turn)
+    initial_skid_ratio: float = 1.0  # wheels' differential yaw rate / the chassis's at t = 0 (chi; 1 = no skid)
     description: str = ""
     paper: str = ""
     source_file: str = ""
@@ -338,6 +340,8 @@ class Scenario:
         "duration": (lambda x: 0 < x <= 4 * 3600, "in (0, 14400] s"),
         "dt": (lambda x: 1e-4 <= x <= 0.02, "in [1e-4, 0.02] s"),
         "log_rate_hz": (_positive, "> 0"),
+        "initial_yaw_rate": (lambda x: math.isfinite(x) and abs(x) <= 10.0, "in [-10, 10] rad/s"),
+        "initial_skid_ratio": (lambda x: 0.0 <= x <= 20.0, "in [0, 20]"),
     }
 
 

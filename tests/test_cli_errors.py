@@ -70,3 +70,12 @@ def test_a_run_with_a_non_numeric_channel_is_named(tmp_path, capsys, dtype) -> N
     assert cli.main(["export-tum", str(path), "-o", str(tmp_path / "x.tum")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(path) in err[0] and "'enc_wl'" in err[0] and "expected a numeric column" in err[0]
+
+
+def test_a_start_yaw_rate_out_of_range_is_one_line_naming_file_field_value(capsys) -> None:
+    """--set initial_yaw_rate / initial_skid_ratio are range-checked like any scenario field (exit 2, one line)."""
+    for over, words in (("initial_yaw_rate=11", "field 'initial_yaw_rate' = 11.0: expected in [-10, 10] rad/s"),
+                        ("initial_skid_ratio=-1", "field 'initial_skid_ratio' = -1.0: expected in [0, 20]")):
+        assert cli.main(["simulate", "circle_vinyl", "--set", over, "-o", "x.parquet"]) == 2
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert len(lines) == 1 and "circle_vinyl.toml" in lines[0] and words in lines[0]

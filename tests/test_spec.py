@@ -46,6 +46,9 @@ def test_vinyl_friction_is_yu_table_ii():
         ({"command.kind": "teleport"}, "command.kind", "one of"),
         ({"duration": 0.0}, "duration", "(0, 14400]"),
         ({"platform.motor.pwm": 1.5}, "platform.motor.pwm", "(0, 1]"),
+        ({"initial_yaw_rate": 12.0}, "initial_yaw_rate", "[-10, 10] rad/s"),
+        ({"initial_yaw_rate": float("nan")}, "initial_yaw_rate", "not NaN"),
+        ({"initial_skid_ratio": -0.5}, "initial_skid_ratio", "[0, 20]"),
     ],
 )
 def test_bad_values_name_file_field_value(override, field, fragment):

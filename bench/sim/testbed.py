@@ -39,9 +39,11 @@ import numpy as np
 
 from bench.sim.commands import first_order_lag, rate_limit, wheel_reference, wheel_speed_scale
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
-from bench.sim.soil import compaction_resistance, sinkage, soil_constants
+from bench.sim.soil import soil_constants
 from bench.sim.tire import friction_coefficient, tire_constants, tire_contact, tire_law
-from bench.spec import Platform, Scenario, Terrain
+from bench.sim.startup import GRAVITY, ContactLaw, initial_wheel_speeds, rolling_coefficient, start_moving
+from bench.sim.startup import wheel_frame as _wheel_frame
+from bench.spec import Scenario
 from bench.sim.ground import rough_ground  # after bench.spec: the uneven ground (ISO 8608)
 
 try:  # the C step (built by pip install; the Python loop below is the reference and the fallback)
@@ -69,7 +71,6 @@ def _import_pybullet():
 
 
 p = _import_pybullet()
-GRAVITY = 9.81
 CONTACT_STIFFNESS_PER_KG = 3300.0  # N/m per kg of vehicle: 1e5 for the P3-AT (DESIGN.md)
 CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
 M_EFF_FRACTION = 0.13  # effective mass of one contact for the force-slope cap (4 kg of 30.6 kg)
@@ -201,18 +202,6 @@ def _disconnect(cid: int, pid: int) -> None:
         p.disconnect(cid)
 
 
-def _wheel_frame(fwd: tuple[float, float, float], n: tuple[float, float, float]
-                 ) -> tuple[float, float, float, float, float, float]:
-    """Unit longitudinal axis (chassis forward projected on the contact plane) and lateral axis
-    ``n x e`` of a wheel whose contact normal is ``n``."""
-    nx, ny, nz = n
-    dot = fwd[0] * nx + fwd[1] * ny + fwd[2] * nz
-    ex, ey, ez = fwd[0] - dot * nx, fwd[1] - dot * ny, fwd[2] - dot * nz
-    en = math.sqrt(ex * ex + ey * ey + ez * ez)
-    ex, ey, ez = ex / en, ey / en, ez / en
-    return ex, ey, ez, ny * ez - nz * ey, nz * ex - nx * ez, nx * ey - ny * ex
-
-
 def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], list[float]]:
     """Per-step wheel-speed references (rad/s) as the PID sees them, through the robot's own velocity
     controller: the command delayed by the actuator delay; mapped (``Platform.command_gain_sum/diff``: mean
@@ -230,9 +219,8 @@ def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], li
         mean = np.clip(g_sum * 0.5 * (ref_l + ref_r), -lim_mean, lim_mean)
         half = np.clip(g_diff * 0.5 * (ref_r - ref_l), -lim_diff, lim_diff)
         ref_l, ref_r = mean - half, mean + half
-    # the initial wheel speeds (_preload_initial_speed's) until the delayed command starts
-    v0, r = scn.initial_speed, plat.wheel_radius
-    w0_l, w0_r = v0 / (r * plat.wheel_radius_scale_l), v0 / (r * plat.wheel_radius_scale_r)
+    # the initial wheel speeds (bench.sim.startup: each side's, in a turn) until the delayed command starts
+    w0_l, w0_r = initial_wheel_speeds(scn)
     ref_l, ref_r = np.where(t_cmd < 0, w0_l, ref_l), np.where(t_cmd < 0, w0_r, ref_r)
     if math.isfinite(plat.command_accel_mean) or math.isfinite(plat.command_accel_diff):
         mean = rate_limit(0.5 * (ref_l + ref_r), dt, plat.command_accel_mean, 0.5 * (w0_l + w0_r))
@@ -245,53 +233,9 @@ def _references(scn: Scenario, seed: int, n_steps: int) -> tuple[list[float], li
     return ref_l.tolist(), ref_r.tolist()
 
 
-def _preload_initial_speed(scn: Scenario, motor: MotorConstants, pid: list[SidePid], r_eff: tuple[float, float],
-                           w: list[float], refs: list[float]) -> None:
-    """Initial speed v0 at t = 0: wheels spinning at v0 / r, references at that speed, and the PID
-    integrators preloaded with the voltage that holds this speed on this slope (in place)."""
-    plat, terr = scn.platform, scn.terrain
-    v0 = scn.initial_speed
-    weight = plat.total_mass * GRAVITY
-    for s in (0, 1):
-        w[s] = v0 / r_eff[s]
-        hold = (0.5 * weight * math.sin(terr.slope) + _side_rolling_resistance(plat, terr, weight)) * r_eff[s]
-        amps = hold / (motor.n * motor.gear * motor.eff * motor.K_T)
-        volt = motor.K_B * motor.gear * w[s] + motor.R_a * amps
-        pid[s].integ = volt / max(plat.pid.ki, 1e-9)
-        pid[s].prev_ref = refs[s] = w[s]
-
-
-def _side_rolling_resistance(plat: Platform, terr: Terrain, weight: float) -> float:
-    """Rolling resistance [N] of one side's two wheels at rest on the slope, equal loads: mu_roll N on rigid ground
-    (terrain and tire, :func:`rolling_coefficient`), Bekker's compaction resistance at the static sinkage on soil."""
-    normal = weight * math.cos(terr.slope)
-    if terr.soil_model != "bekker":
-        return 0.5 * rolling_coefficient(plat, terr) * normal
-    z = sinkage(normal / 4.0, plat.wheel_radius, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
-    return 2.0 * compaction_resistance(z, plat.wheel_width, terr.soil_n, terr.soil_k_c, terr.soil_k_phi)
-
-
-def rolling_coefficient(plat: Platform, terr: Terrain) -> float:
-    """Rolling-resistance coefficient on rigid ground: the terrain's plus the tire's (``Platform.tire_rolling_resistance``,
-    the tire's difference from the tire the terrain's value was measured with); on soil only the compaction acts."""
-    mu = terr.rolling_resistance + plat.tire_rolling_resistance
-    if mu < 0.0:
-        raise ValueError(f"platform {plat.name} on {terr.name}: rolling resistance {mu} < 0 "
-                         f"(terrain {terr.rolling_resistance} + tire {plat.tire_rolling_resistance})")
-    return mu
-
-
-def _start_moving(robot: int, cid: int, orn: tuple, ang: tuple, v0: float) -> tuple[float, float, float]:
-    """At t = 0 of a scenario with an initial speed: the chassis velocity set to ``v0`` along its forward axis."""
-    R0 = p.getMatrixFromQuaternion(orn)
-    lin = (R0[0] * v0, R0[3] * v0, R0[6] * v0)
-    p.resetBaseVelocity(robot, lin, ang, physicsClientId=cid)
-    return lin
-
-
 def _kernel_loop(kern, scn: Scenario, motor: MotorConstants, pid: list[SidePid], r_eff: tuple[float, float],
-                 robot: int, cid: int, n_settle: int, n_steps: int, progress: Callable[[float], None] | None
-                 ) -> np.ndarray:
+                 robot: int, cid: int, n_settle: int, n_steps: int, progress: Callable[[float], None] | None,
+                 contact: ContactLaw) -> np.ndarray:
     """The loop of :func:`run_physics` with its arithmetic in the C step (``bench.sim._kernel``): the same
     pybullet calls in the same order, the same trace bit for bit (tests/sim/test_kernel.py)."""
     getpos, getvel, getcp, mat = p.getBasePositionAndOrientation, p.getBaseVelocity, p.getContactPoints, p.getMatrixFromQuaternion
@@ -301,10 +245,9 @@ def _kernel_loop(kern, scn: Scenario, motor: MotorConstants, pid: list[SidePid],
     for k in range(-n_settle, n_steps + 1):
         pos, orn = getpos(robot, cid)
         lin, ang = getvel(robot, cid)
-        if k == 0 and scn.initial_speed != 0.0:
-            lin = _start_moving(robot, cid, orn, ang, scn.initial_speed)
+        if k == 0 and (scn.initial_speed != 0.0 or scn.initial_yaw_rate != 0.0):
             w, refs = [0.0, 0.0], [0.0, 0.0]
-            _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
+            lin, ang = start_moving(scn, robot, cid, orn, ang, motor, pid, r_eff, w, refs, contact)
             for s in (0, 1):
                 kern.set_side(s, w[s], refs[s], pid[s].integ, pid[s].prev_ref)
         out = kstep(k, pos, orn, lin, ang, mat(orn), getcp(robot, -1, -2, -2, cid))
@@ -373,6 +316,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         pid_adds_slope = pid_every == 1
         volts = [0.0, 0.0]
         law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_law, eps, k_max)
+        contact = ContactLaw(law, (p_coef, q_coef) if tire else None,
+                             (z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef) if soil else None)
         k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
         w = [0.0, 0.0]
         th = [0.0, 0.0]
@@ -396,7 +341,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 kern.set_soil(z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef)
             if tire:
                 kern.set_tire(p_coef, q_coef)
-            return PhysicsTrace(_kernel_loop(kern, scn, motor, pid, r_eff, robot, cid, n_settle, n_steps, progress), cg)
+            return PhysicsTrace(_kernel_loop(kern, scn, motor, pid, r_eff, robot, cid, n_settle, n_steps, progress,
+                                                    contact), cg)
         # the log is one flat list of floats: floats are not tracked by the cyclic GC, so the loop
         # allocates no lasting GC-tracked object (a list of row tuples triggered a collection
         # every ~700 steps, ~1 us a step)
@@ -418,9 +364,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             # positional client ids: keyword parsing costs ~0.25 us a call, ~1.2 us a step
             pos, orn = getpos(robot, cid)
             lin, ang = getvel(robot, cid)
-            if k == 0 and scn.initial_speed != 0.0:
-                lin = _start_moving(robot, cid, orn, ang, scn.initial_speed)
-                _preload_initial_speed(scn, motor, pid, r_eff, w, refs)
+            if k == 0 and (scn.initial_speed != 0.0 or scn.initial_yaw_rate != 0.0):
+                lin, ang = start_moving(scn, robot, cid, orn, ang, motor, pid, r_eff, w, refs, contact)
             # references (rate-limited)
             if k >= 0:
                 dref = ref_l[k] - refs[0]
