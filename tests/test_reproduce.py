@@ -316,3 +316,19 @@ def test_an_extra_records_only_its_own_files_while_papers_write_beside_it(tmp_pa
     assert json.loads(marker.read_text())["outputs"].keys() == {"league.md"}
     assert stages["league"]["from_cache"] is False
     assert C.EXTRA_OUTPUTS["league"] == ("league",) and C.EXTRA_OUTPUTS["stress"] == ("stress",)
+
+
+def test_the_result_key_ignores_where_the_caches_are(monkeypatch):
+    """The result cache's key (provenance.code_key) hashes the SKIDBENCH_* settings that change a result (e.g. the
+    kernel) but not the ones that only say where caches live: CI's SKIDBENCH_TEST_CACHE lets the test fixtures find
+    the quick results the command line has just made."""
+    from bench.reproduce.provenance import code_key
+
+    for var in ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE", "SKIDBENCH_KERNEL"):
+        monkeypatch.delenv(var, raising=False)
+    base = code_key("yi2009", "True")
+    monkeypatch.setenv("SKIDBENCH_TEST_CACHE", "/somewhere/runs")
+    monkeypatch.setenv("SKIDBENCH_CACHE", "/elsewhere/runs")
+    assert code_key("yi2009", "True") == base
+    monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
+    assert code_key("yi2009", "True") != base

@@ -7,13 +7,14 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import quad
+from scipy.optimize import brentq
 from scipy.special import beta
 
 from bench.sim import simulate
 from bench.sim.soil import (compaction_resistance, janosi_shear, pressure, sinkage, soil_constants,
                             traction_limit)
 from bench.sim.testbed import GRAVITY
-from bench.sim.tire import janosi_fraction, tire_law
+from bench.sim.tire import janosi_fraction, tire_contact, tire_law
 from bench.spec import load_scenario, load_terrain
 
 SAND = load_terrain("sand")  # Wong Table 2.3 dry sand
@@ -107,3 +108,30 @@ def test_straight_on_sand_torque_balances_compaction():
     assert got == pytest.approx(expect, rel=0.02)
     # and not with the rigid-ground term added (it would be 20 % or more above the balance)
     assert r * (terr.rolling_resistance * plat.total_mass * GRAVITY + rc) > 1.2 * got
+
+
+def test_straight_on_sand_slips_until_the_shear_carries_the_compaction_resistance():
+    """The compaction resistance is the horizontal part of the rim's normal pressure: a force against the travel,
+    not a torque about the axle (Wong Ch. 2: drawbar pull DP = F - R_c).  At constant speed DP = 0, so each
+    wheel's Janosi patch force at its slip i carries R_c of its load: mu W [1 - (1 - e^-z)/z] = R_c(W),
+    z = i l / K (l the tire's patch at W, mu = tan phi + c A / W).  The measured slip 1 - v / (r_loaded w) is that
+    i within 3 %; with R_c booked as a wheel torque the wheels would roll without slip."""
+    base = load_scenario("straight_0p2_vinyl")
+    scn = dataclasses.replace(base, terrain=dataclasses.replace(SAND, slope=0.0))
+    d = simulate(scn, 0).data
+    d = d[d["t"] >= 3.0]
+    plat, terr = scn.platform, scn.terrain
+    p_coef, q_coef = tire_contact(plat.wheel_radius, plat.wheel_width, plat.tire_pressure, plat.tire_modulus)
+    expect, radius = [], []
+    for w in (float(np.nanmean(d[c])) for c in ("truth_n_fl", "truth_n_rl", "truth_n_fr", "truth_n_rr")):
+        z = sinkage(w, plat.wheel_radius, plat.wheel_width, *_soil(terr))
+        r_c = compaction_resistance(z, plat.wheel_width, *_soil(terr))
+        mu = math.tan(terr.soil_friction_angle) + terr.soil_cohesion * plat.wheel_width * math.sqrt(
+            2.0 * plat.wheel_radius * z) / w
+        zz = brentq(lambda x: mu * w * (1.0 - (1.0 - math.exp(-x)) / x) - r_c, 1e-9, 100.0)
+        expect.append(zz * terr.shear_modulus / (p_coef * math.sqrt(w)))
+        radius.append(plat.wheel_radius * (1.0 - q_coef * w))
+    w_side = 0.5 * (np.mean(d["truth_wl"]) + np.mean(d["truth_wr"]))
+    measured = 1.0 - float(np.mean(d["truth_vx"])) / (float(np.mean(radius)) * w_side)
+    assert measured == pytest.approx(float(np.mean(expect)), rel=0.03)
+    assert measured > 0.1  # Wong's self-propelled slip on loose sand is far from 0

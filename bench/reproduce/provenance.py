@@ -14,6 +14,9 @@ from bench.reproduce.runner import REPO
 __all__ = ["code_key", "git_commit", "package_versions"]
 
 
+_WHERE_ONLY = ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE")  # say where caches are, not what a result is
+
+
 def code_key(*extra: str) -> str:
     """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
     platform, terrain and paper files, the installed package versions, plus ``extra``."""
@@ -25,7 +28,7 @@ def code_key(*extra: str) -> str:
             h.update(p.read_bytes())
     h.update(json.dumps(package_versions(), sort_keys=True).encode())
     h.update(json.dumps(sorted((k, v) for k, v in os.environ.items() if k.startswith("SKIDBENCH_")
-                               and k != "SKIDBENCH_CACHE")).encode())
+                               and k not in _WHERE_ONLY)).encode())
     for e in extra:
         h.update(e.encode())
     return h.hexdigest()[:24]

@@ -22,6 +22,7 @@
 
 #define N_REC 28
 #define N_CONST 26
+#define SOIL_EPS 0.01  /* bench/sim/testbed.py SOIL_EPS */
 
 typedef struct {
     double x_min, x_max, y_min, y_max, mu_scale, t_period;
@@ -403,7 +404,7 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
         double mu_base = self->mu_op + (self->mu_sa - self->mu_op) * drive;
         double rr = self->r_eff[s];
         double u = rr * ws;
-        double f_lon_sum = 0.0, stiff_sum = 0.0, n_side = 0.0, rc_side = 0.0;
+        double f_lon_sum = 0.0, stiff_sum = 0.0, n_side = 0.0;
         double sx = 0.0, sy = 0.0, sz = 0.0, smx = 0.0, smy = 0.0, smz = 0.0;
         for (int i = 2 * s; i < 2 * s + 2; i++) {
             double nf = normal[i];
@@ -433,13 +434,18 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             double v_lon = vcx * ex + vcy * ey + vcz * ez;
             double v_lat = vcx * lx + vcy * ly + vcz * lz;
             double mu = mu_base;
+            double f_rc = 0.0;
             if (self->soil) {  /* Bekker sinkage under the current load; shear strength c A + W tan phi */
                 double z = self->soil_z_coef * pow(nf, self->soil_z_exp);
-                rc_side += self->soil_rc_coef * pow(z, self->soil_n1);
                 mu = self->soil_tan_phi + self->soil_ca_coef * sqrt(z) / nf;
+                /* compaction resistance: a force on the body against the travel (Wong Ch. 2), slope capped at k_max */
+                double rc = self->soil_rc_coef * pow(z, self->soil_n1);
+                double e_rc = rc / self->k_max;
+                if (!(e_rc > SOIL_EPS)) e_rc = SOIL_EPS;
+                f_rc = -rc * tanh(v_lon / e_rc);
             }
-            for (Py_ssize_t q = 0; q < self->n_patches; q++) {
-                const Patch *fp = &self->patches[q];
+            for (Py_ssize_t k = 0; k < self->n_patches; k++) {
+                const Patch *fp = &self->patches[k];
                 if (fp->x_min <= cx && cx <= fp->x_max && fp->y_min <= cy_ && cy_ <= fp->y_max) {
                     double scale = fp->mu_scale;
                     if (fp->t_period > 0)
@@ -471,9 +477,10 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             }
             f_lon_sum += q * f_lon;
             stiff_sum += q * q * stiff;
-            double gx = f_lon * ex + f_lat * lx;
-            double gy = f_lon * ey + f_lat * ly;
-            double gz = f_lon * ez + f_lat * lz;
+            double f_body = f_lon + f_rc;  /* the tire's shear and the soil's compaction resistance (0 off soil) */
+            double gx = f_body * ex + f_lat * lx;
+            double gy = f_body * ey + f_lat * ly;
+            double gz = f_body * ez + f_lat * lz;
             fx += gx;
             fy += gy;
             fz += gz;
@@ -489,8 +496,8 @@ static PyObject *Kernel_step(Kernel *self, PyObject *const *args, Py_ssize_t nar
             smz += sq * (rx * ey - ry * ex);
         }
         double sgn = tanh(u / 0.01);
-        /* rolling resistance: mu_roll N on rigid ground; on soil Bekker's compaction resistance replaces it */
-        double roll = (self->soil ? rc_side : self->mu_roll * n_side) * rr;
+        /* rolling resistance: mu_roll N on rigid ground; none on soil (the compaction resistance acts on the body) */
+        double roll = self->soil ? 0.0 : self->mu_roll * n_side * rr;
         double t_roll = roll * sgn;
         double dt_roll = roll * (1 - sgn * sgn) * rr / 0.01;
         double num = tq - rr * f_lon_sum - t_roll;

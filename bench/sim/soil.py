@@ -12,12 +12,17 @@ Wong, Theory of Ground Vehicles (3rd ed., 2001), Ch. 2; Bekker, Introduction to 
   rut ``l = sqrt(2 r z)`` (small sinkage)  -> :func:`contact_length`.
 
 How the testbed uses it (bench/sim/testbed.py and bench/sim/_kernel.c, ``Terrain.soil_model == "bekker"``):
-every step and at each wheel, the wheel's current normal load W gives z(W); R_c(W) acts as a rolling-resistance
-torque ``R_c r`` on the side's wheels (against the rolling direction, like ``rolling_resistance``), and the
-tire law's friction limit ``mu N`` becomes the soil's shear strength ``c A(W) + W tan phi`` (so ``mu`` is
-``tan phi + c A / W``; Yu's mu_sa / mu_op drive-brake split does not apply on soil).  The contact geometry
-is not moved (Bullet's wheel still rests on the rigid plane): a force model, exact for the steady resistance
-and traction of a rigid wheel, without the rut's effect on pitch and on the rolling radius.
+every step and at each wheel, the wheel's current normal load W gives z(W); R_c(W) acts on the body at the contact,
+along the wheel's forward axis against its travel (the horizontal part of the rim's normal pressure, which passes
+through the axle: no torque about it; Wong Ch. 2, drawbar pull DP = F - R_c), so the tire's shear must carry it and
+the wheels slip, as on real loose ground; the terrain's rigid-ground ``rolling_resistance`` (a wheel moment) is not
+applied on soil.  The tire law's friction limit ``mu N`` becomes the soil's shear strength ``c A(W) + W tan phi``
+(so ``mu`` is ``tan phi + c A / W``; Yu's mu_sa / mu_op drive-brake split does not apply on soil).  The contact
+geometry is not moved (Bullet's wheel still rests on the rigid ground): a force model, exact for the steady
+resistance and traction of a rigid wheel, without the rut's effect on pitch and on the rolling radius.  Simplifications:
+the cohesion's area uses the rut chord, the shear build-up the tire's patch length; every wheel presses a fresh rut
+(no multi-pass effect of a rear wheel in the front wheel's rut, so a straight's R_c is an upper bound); no
+bulldozing of a laterally skidding wheel.
 """
 from __future__ import annotations
 

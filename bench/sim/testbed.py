@@ -76,6 +76,7 @@ CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
 M_EFF_FRACTION = 0.13  # effective mass of one contact for the force-slope cap (4 kg of 30.6 kg)
 SETTLE_TIME = 0.5  # s of settling on the ground before t = 0
 HOLD_TIME = 0.2  # s: time constant of a standing wheel's patch deflection (static friction)
+SOIL_EPS = 0.01  # m/s: smoothing of the compaction resistance's sign (as the rolling torque's)
 WHEEL_ORDER = ("fl", "rl", "fr", "rr")  # link index 0..3; sides: 0,1 left; 2,3 right
 
 # physics-rate record columns
@@ -130,8 +131,10 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
     )
     sphere = p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=cid)
     # base link frame: geometric centre at axle height; the chassis CoM placed so that the whole vehicle's (with its
-    # four wheels at the corners) is at (cg_offset_x, cg_offset_y) from the geometric centre
-    cg = (plat.cg_offset_x * m_total / m_base, plat.cg_offset_y * m_total / m_base, plat.cg_height - r)
+    # four wheels at the corners, at axle height) is at (cg_offset_x, cg_offset_y) from the geometric centre and
+    # cg_height above the ground
+    scale = m_total / m_base
+    cg = (plat.cg_offset_x * scale, plat.cg_offset_y * scale, (plat.cg_height - r) * scale)
     links = [(a, b, 0.0), (-a, b, 0.0), (a, -b, 0.0), (-a, -b, 0.0)]
     # place on the tilted plane: the link origin r above the surface along its normal
     n = (-math.sin(terr.slope), 0.0, math.cos(terr.slope))  # plane normal after the tilt
@@ -404,7 +407,6 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                 f_lon_sum = 0.0
                 stiff_sum = 0.0
                 n_side = 0.0
-                rc_side = 0.0
                 # stiffness-weighted wheel directions and moments: the force correction for the
                 # new wheel speed is rr * dw * (these sums), applied after the side's update
                 sx = sy = sz = smx = smy = smz = 0.0
@@ -432,10 +434,15 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     v_lon = vcx * ex + vcy * ey + vcz * ez
                     v_lat = vcx * lx + vcy * ly + vcz * lz
                     mu = mu_base
+                    f_rc = 0.0
                     if soil:  # Bekker sinkage under the current load; shear strength c A + W tan phi
                         z = z_coef * nf ** z_exp
-                        rc_side += rc_coef * z ** n1
                         mu = tan_phi + ca_coef * math.sqrt(z) / nf
+                        # compaction resistance R_c: the rim's normal pressure, horizontal component against the
+                        # travel, a force on the body (Wong Ch. 2: DP = F - R_c), not a torque on the wheel; its
+                        # smooth sign's slope capped at k_max like the tire law's
+                        rc = rc_coef * z ** n1
+                        f_rc = -rc * tanh(v_lon / max(SOIL_EPS, rc / k_max))
                     if patches:
                         for fp in patches:
                             if fp.x_min <= cx <= fp.x_max and fp.y_min <= cy_ <= fp.y_max:
@@ -467,9 +474,10 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     # the wheel's radius r q: its torque q rr f_lon, its stiffness seen by the spin (q rr)^2 stiff
                     f_lon_sum += q * f_lon
                     stiff_sum += q * q * stiff
-                    gx = f_lon * ex + f_lat * lx
-                    gy = f_lon * ey + f_lat * ly
-                    gz = f_lon * ez + f_lat * lz
+                    f_body = f_lon + f_rc  # the tire's shear and the soil's compaction resistance (0 off soil)
+                    gx = f_body * ex + f_lat * lx
+                    gy = f_body * ey + f_lat * ly
+                    gz = f_body * ez + f_lat * lz
                     fx += gx
                     fy += gy
                     fz += gz
@@ -483,11 +491,11 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
                     smx += sq * (ry * ez - rz * ey)
                     smy += sq * (rz * ex - rx * ez)
                     smz += sq * (rx * ey - ry * ex)
-                # rolling resistance torque on the side's wheels, smooth sign
+                # rolling resistance torque on the side's wheels, smooth sign: mu_roll sum N_i q_i (terrain + tire
+                # coefficient) on rigid ground (the pressure shifted ahead of the axle); none on soil, where the
+                # rim's pressure passes through the axle and the compaction resistance acts on the body (above)
                 sgn = tanh(u / 0.01)
-                # mu_roll sum N_i q_i (terrain + tire coefficient) on rigid ground; on soil Bekker's compaction resistance replaces it (the terrain's
-                # rolling_resistance stood for the ground's deformation, which the soil model now computes)
-                roll = (rc_side if soil else mu_roll * n_side) * rr
+                roll = 0.0 if soil else mu_roll * n_side * rr
                 t_roll = roll * sgn
                 dt_roll = roll * (1 - sgn * sgn) * rr / 0.01
                 num = tq - rr * f_lon_sum - t_roll

@@ -19,7 +19,7 @@ CASES = {
     "initial_speed_ramp": ("ramp_asphalt_5p4", {"duration": 1.5, "initial_speed": 0.5}),
     "initial_turn_ramp": ("ramp_asphalt_5p4", {"duration": 1.5, "initial_speed": 0.4, "initial_yaw_rate": -0.5,
                                                "initial_skid_ratio": 1.8}),
-    "initial_turn_soil_tire": ("mandow_joystick_asphalt_solid", {"duration": 1.0, "initial_speed": -0.3,
+    "initial_turn_backward_solid_tire": ("mandow_joystick_asphalt_solid", {"duration": 1.0, "initial_speed": -0.3,
                                                                   "initial_yaw_rate": 0.6, "initial_skid_ratio": 2.0}),
     "slow_pid_random_seeded": ("stress_dubhe_random", {"duration": 2.5, "platform.pid.rate_hz": 20.0}),
     "saturating_motor_power_limit": ("yu_lemniscate", {"duration": 2.0, "platform.motor.max_power": 5.0,
@@ -34,6 +34,9 @@ CASES = {
     # issue 31: per-wheel patch and loaded radius from the load, a CoM offset, a tire's rolling resistance
     "solid_tire_cg_offset": ("mandow_joystick_asphalt_solid", {"duration": 2.5}),
     "pneumatic_50psi_rotation": ("mandow_rotation_smooth_concrete_pneumatic_50psi", {"duration": 2.0}),
+    # Bekker soil: sinkage, shear strength and the compaction resistance on the body, standing, turning, rough
+    "soil_sand_turn": ("yi_s_gamma_sand", {"duration": 2.0}),
+    "soil_dirt_rough_straight": ("liu_straight", {"duration": 1.5}),
     "pneumatic_standing_on_ramp": ("ramp_wood_15", {"duration": 1.0, "platform.tire_pressure": 2.0e5,
                                                      "platform.cg_offset_x": -0.05}),
 }

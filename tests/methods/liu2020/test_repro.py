@@ -202,10 +202,12 @@ def test_nees_paper_and_consistent_side_by_side(repro):
 def test_online_icr_does_not_latch_after_a_start_from_rest(repro):
     """The class of defect found in Yi 2009 (an estimate latched at a clamp after a start from rest): on the
     testbed turns, started from rest, the UKF+ICR and MI-UKF ICR leaves the [-20, 20] clamp within the first
-    second and then follows the testbed truth.  A latched estimate sits at the clamp with an error of ~19 m; one
-    that follows has a median error of the order of the truth's own spread (on the uneven ground the truth ICR
-    shakes at every bump, and at the large radius's low yaw rate a bump may touch the clamp for a sample or two,
-    as Liu Sec. V-B-3 says the ICR 'may reach infinity')."""
+    second.  A latched estimate sits at the clamp with an error of ~19 m.  On the small radius (yaw rate ~0.5
+    rad/s, the ICR well defined) the estimate follows the truth: its median error is below that of the best constant,
+    the truth's own median (the truth's median absolute deviation).  On the large radius the low yaw rate and the
+    class C field's bumps make the truth ICR shake at every bump (Liu Sec. V-B-3: the ICR 'may reach infinity');
+    there the test asks only that the estimate is not latched: at the clamp for under 2 % of the samples, median
+    error under twice the truth's interquartile range."""
     _, runner, _ = repro
     for name in ("liu_large_radius", "liu_small_radius"):
         run = runner.simulate(load_scenario(name, {"duration": L.SETTINGS.quick_duration}), 0)
@@ -215,9 +217,12 @@ def test_online_icr_does_not_latch_after_a_start_from_rest(repro):
             est = registry.estimate(registry.get(L.METHODS[f]), run)
             for c in ("y_l", "y_r"):
                 truth = run[f"truth_{c}"][after]
-                iqr = float(np.subtract(*np.percentile(truth, [75, 25])))
+                err = float(np.median(np.abs(est[c][after] - truth)))
                 assert np.mean(np.abs(est[c][after]) >= 19.99) < 0.02, (name, f, c)
-                assert np.median(np.abs(est[c][after] - truth)) < 2.0 * iqr, (name, f, c)
+                if name == "liu_small_radius":
+                    assert err < float(np.median(np.abs(truth - np.median(truth)))), (name, f, c, err)
+                else:
+                    assert err < 2.0 * float(np.subtract(*np.percentile(truth, [75, 25]))), (name, f, c, err)
 
 
 def test_ordering_margins_are_paired_student_t_half_widths(repro):
