@@ -202,17 +202,23 @@ def test_nees_paper_and_consistent_side_by_side(repro):
 def test_online_icr_does_not_latch_after_a_start_from_rest(repro):
     """The class of defect found in Yi 2009 (an estimate latched at a clamp after a start from rest): on the
     testbed turns, started from rest, the UKF+ICR and MI-UKF ICR leaves the [-20, 20] clamp within the first
-    second.  A latched estimate sits at the clamp with an error of ~19 m.  On the small radius (yaw rate ~0.5
-    rad/s, the ICR well defined) the estimate follows the truth: its median error is below that of the best constant,
-    the truth's own median (the truth's median absolute deviation).  On the large radius the low yaw rate and the
-    class C field's bumps make the truth ICR shake at every bump (Liu Sec. V-B-3: the ICR 'may reach infinity');
-    there the test asks only that the estimate is not latched: at the clamp for under 2 % of the samples, median
-    error under twice the truth's interquartile range."""
+    second.  A latched estimate sits at the clamp with an error of ~19 m.  On the small radius (yaw rate ~0.8
+    rad/s, the ICR well defined) the online estimate follows this scenario's ICR: its median error is under half
+    that of the constant ICRs fitted on the calibration run (fit_icr on liu_calib, what the ICR dead reckoning
+    uses).  On the large radius the low yaw rate and the class C field's bumps make the truth ICR shake at every
+    bump (Liu Sec. V-B-3: the ICR 'may reach infinity'); there the test asks only that the estimate is not latched:
+    at the clamp for under 2 % of the samples, median error under twice the truth's interquartile range."""
     _, runner, _ = repro
+    calib = runner.simulate(load_scenario(L.SETTINGS.calib_scenario), L.SETTINGS.calib_seed)
+    const = dict(zip(("y_l", "y_r"), fit_icr([calib.without_truth()])[:2]))
     for name in ("liu_large_radius", "liu_small_radius"):
         run = runner.simulate(load_scenario(name, {"duration": L.SETTINGS.quick_duration}), 0)
         after = run.t >= 1.0
-        assert np.isfinite(run["truth_y_l"][after]).all()
+        if name == "liu_small_radius":
+            assert np.isfinite(run["truth_y_l"][after]).all()
+        else:  # the truth ICR does not exist where a bump takes the yaw rate through 0 (below 1e-3 rad/s)
+            after &= np.isfinite(run["truth_y_l"]) & np.isfinite(run["truth_y_r"])
+            assert after.mean() > 0.8
         for f in L.FILTERS:
             est = registry.estimate(registry.get(L.METHODS[f]), run)
             for c in ("y_l", "y_r"):
@@ -220,7 +226,7 @@ def test_online_icr_does_not_latch_after_a_start_from_rest(repro):
                 err = float(np.median(np.abs(est[c][after] - truth)))
                 assert np.mean(np.abs(est[c][after]) >= 19.99) < 0.02, (name, f, c)
                 if name == "liu_small_radius":
-                    assert err < float(np.median(np.abs(truth - np.median(truth)))), (name, f, c, err)
+                    assert err < 0.5 * float(np.median(np.abs(truth - const[c]))), (name, f, c, err)
                 else:
                     assert err < 2.0 * float(np.subtract(*np.percentile(truth, [75, 25]))), (name, f, c, err)
 
