@@ -24,11 +24,15 @@ class EncoderSpec:
     rate_hz: float = 100.0
     scale_error_l: float = 0.0  # fractional scale error of the left encoder (gap catalogue)
     scale_error_r: float = 0.0
+    # [s] the wheel-speed channel reports late: the sample at t is the count difference of the wheel angles at
+    # t - latency - 1/rate and t - latency (driver buffering, filtering, transport; gap catalogue)
+    latency: float = 0.0
     _checks = {
         "counts_per_rev": (lambda x: x > 0, "> 0"),
         "rate_hz": (_positive, "> 0"),
         "scale_error_l": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
         "scale_error_r": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
+        "latency": (lambda x: 0 <= x <= 2 and math.isfinite(x), "in [0, 2] s"),
     }
 
 

@@ -68,6 +68,7 @@ DEFAULT_REFS: dict[str, str] = {
     "motor.gear_efficiency": "default 1: lossless gearbox (Yu 2010 models no gear loss)",
     "sensors.encoder.scale_error_l": "default 0: exact encoder scale",
     "sensors.encoder.scale_error_r": "default 0: exact encoder scale",
+    "sensors.encoder.latency": "default 0: wheel speeds reported when counted",
     "sensors.imu.accel_noise": "default 0.02 m/s^2 per sample: generic MEMS IMU, not from a paper",
     "sensors.imu.gyro_noise": "default 0.002 rad/s per sample: generic MEMS IMU, not from a paper",
     "sensors.imu.accel_bias_walk": "default 1e-4 m/s^2/sqrt(s): generic MEMS IMU, not from a paper",

@@ -60,10 +60,11 @@ CASES = [
                            "platform.motor.max_current": _motor(JAN).max_current * 0.6}, 118, {"torque_scale": 0.6}),
     ("encoder_scale", JAN, {"platform.sensors.encoder.scale_error_l": -0.04}, 110, {"scale_error_l": -0.04}),
     ("gyro_bias", COUL, {"platform.sensors.imu.gyro_bias_z": -0.015}, 111, {"gyro_bias_z": -0.015}),
+    ("encoder_latency", JAN, {"platform.sensors.encoder.latency": 0.12}, 119, {"latency": 0.12}),
 ]
 DEFAULT_RUN = {"rolling_resistance", "shear_displacement", "wheel_radius", "motor_saturation", "encoder_scale",
                "command_limit", "powertrain_lag", "wheel_speed_limit", "command_accel", "lateral_friction",
-               "motor_torque"}
+               "motor_torque", "encoder_latency"}
 
 
 def _measured(sim, scenario: str, seed: int, hidden: dict):
@@ -132,6 +133,30 @@ def test_two_hidden_effects_are_both_named(sim):
     params = {k: v for e in res.effects for k, v in e["parameters"].items()}
     assert params["cg_offset_x"] == pytest.approx(0.04, rel=0.2)
     assert params["rolling_resistance"] == pytest.approx(0.06, abs=0.2 * (0.06 - load_scenario(JAN).terrain.rolling_resistance))
+
+
+ENC = "platform.sensors.encoder."
+
+
+@pytest.mark.parametrize("scenario,seed,rate", [(COUL, 121, 100.0), (JAN, 122, 20.0)], ids=["100Hz", "20Hz"])
+def test_hidden_encoder_latency_is_named_first_and_fitted_within_its_standard_error(sim, scenario, seed, rate):
+    """0.2 s of wheel-speed latency (at the scenario's 100 Hz encoder, and at 20 Hz as the DRIVE Husky's): named
+    first, alone, and the fitted latency within one standard error of 0.2 s."""
+    nominal = load_scenario(scenario, {ENC + "rate_hz": rate})
+    res = find_gap(_measured(sim, scenario, seed, {ENC + "latency": 0.2, ENC + "rate_hz": rate}), nominal)
+    assert res.named == ["encoder_latency"], res.verdict
+    e = res.effects[0]
+    assert abs(e["parameters"]["latency"] - 0.2) <= e["uncertainty"]["latency"] < 0.02, e
+
+
+def test_actuator_delay_and_encoder_latency_are_told_apart(sim):
+    """A 0.2 s actuator delay (the robot moves late: gyro, pose and wheels) with 0.15 s more latency of the
+    wheel-speed samples (the wheels are reported later still): both named, each within one standard error."""
+    res = find_gap(_measured(sim, COUL, 123, {"platform.actuator_delay": 0.2, ENC + "latency": 0.15}), COUL)
+    assert set(res.named) == {"actuator_delay", "encoder_latency"}, res.verdict
+    p = {k: (v, e["uncertainty"][k]) for e in res.effects for k, v in e["parameters"].items()}
+    for name, truth in (("delay", 0.2), ("latency", 0.15)):
+        assert abs(p[name][0] - truth) <= p[name][1] < 0.5 * truth, (name, p[name])
 
 
 def test_effect_outside_the_catalogue_ends_in_unexplained_residual(sim):

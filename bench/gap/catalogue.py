@@ -9,7 +9,7 @@ Kinds:
 
 * ``physics``: changes the testbed's physics; evaluating it needs a simulation.
 * ``sensor``: a deterministic sensor error; applied to the model's noise-free signals without
-  re-simulating (encoder scale error, gyro bias).
+  re-simulating (encoder scale error and latency, gyro bias).
 * ``delay``: actuator delay; simulated (the testbed delays the PID reference), screened on a
   time-shift surrogate of the nominal signals and fitted over the testbed's physics steps.
 
@@ -19,6 +19,7 @@ terrain), which is screened on a grid instead.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping
@@ -47,17 +48,15 @@ class ModelConfig:
     enc_scale: tuple[float, float] = (0.0, 0.0)
     gyro_bias: float = 0.0
     shift: float = 0.0
+    enc_latency: float = 0.0  # [s] the encoders report late (EncoderSpec.latency)
 
     def with_overrides(self, **kv: Any) -> "ModelConfig":
         d = dict(self.overrides)
         d.update(kv)
-        return ModelConfig(tuple(sorted(d.items())), self.enc_scale, self.gyro_bias, self.shift)
+        return dataclasses.replace(self, overrides=tuple(sorted(d.items())))
 
     def replace(self, **kv: Any) -> "ModelConfig":
-        d = {"overrides": self.overrides, "enc_scale": self.enc_scale, "gyro_bias": self.gyro_bias,
-             "shift": self.shift}
-        d.update(kv)
-        return ModelConfig(**d)
+        return dataclasses.replace(self, **kv)
 
 
 @dataclass(frozen=True)
@@ -191,6 +190,14 @@ def _enc_spec(scn, v):
 
 def _gyro_spec(scn, v):
     return {"platform.sensors.imu.gyro_bias_z": v[0]}
+
+
+def _enc_latency_spec(scn, v):
+    return {"platform.sensors.encoder.latency": max(v[0], 0.0)}
+
+
+def _enc_latency_apply(scn, cfg, v):
+    return cfg.replace(enc_latency=max(v[0], 0.0))
 
 
 def _enc_apply(scn, cfg, v):
@@ -375,6 +382,17 @@ CATALOGUE: tuple[Effect, ...] = (
         lambda s: (s.platform.sensors.encoder.scale_error_l, s.platform.sensors.encoder.scale_error_r),
         _enc_apply, _enc_spec),
     Effect(
+        "encoder_latency", "wheel-speed sensor latency",
+        "The wheel-speed channel reports late by latency [s]: each sample is the count difference of the wheel "
+        "angles latency before its time stamp (driver buffering or filtering, a time stamp taken on arrival, "
+        "transport), while the robot itself moves on time.",
+        (Param("latency", "s", 0.0, 0.5, 0.01),),
+        ("enc_wl", "enc_wr"),
+        "every wheel-speed transient late by the same time while the gyro, accelerometer and pose respond on "
+        "time (an actuator delay delays them all); steady wheel speeds unchanged", "sensor",
+        lambda s: (s.platform.sensors.encoder.latency,), _enc_latency_apply, _enc_latency_spec,
+        probe_grid=tuple((0.025 * k,) for k in range(1, 21))),
+    Effect(
         "gyro_bias", "IMU gyro bias",
         "Constant bias of the gyro's z rate [rad/s].",
         (Param("gyro_bias_z", "rad/s", -0.5, 0.5, 0.005),),
@@ -397,7 +415,8 @@ def get(name: str) -> Effect:
 def nominal_config(scn: Scenario) -> ModelConfig:
     """The nominal model: the scenario as specified (its own sensor errors applied)."""
     enc = scn.platform.sensors.encoder
-    return ModelConfig((), (enc.scale_error_l, enc.scale_error_r), scn.platform.sensors.imu.gyro_bias_z, 0.0)
+    return ModelConfig((), (enc.scale_error_l, enc.scale_error_r), scn.platform.sensors.imu.gyro_bias_z, 0.0,
+                       enc.latency)
 
 
 __all__ = ["Param", "Effect", "ModelConfig", "CATALOGUE", "BY_NAME", "get", "nominal_config"]

@@ -129,7 +129,7 @@ class Evaluator:
     def signals(self, cfg: ModelConfig) -> dict[str, np.ndarray]:
         tr = self.trace(cfg.overrides)
         return sample_trace(tr, self.grid, shift=cfg.shift, enc_scale=cfg.enc_scale, gyro_bias=cfg.gyro_bias,
-                            x_offset=self.pose_offset)
+                            x_offset=self.pose_offset, enc_latency=cfg.enc_latency)
 
     def z(self, cfg: ModelConfig) -> np.ndarray:
         return self.space.zvec(self.signals(cfg))
@@ -274,8 +274,9 @@ def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: n
     scn = ev.scn
     lay = Layout((effect,), base)
     neutral = effect.neutral(scn)
-    if effect.kind == "sensor":
-        res = refine(ev, lay, np.array(neutral, float), max_nfev=20)
+    if effect.kind == "sensor":  # from the best of neutral and the grid (cheap: no simulation)
+        start = min([tuple(neutral)] + list(effect.probe_grid), key=lambda g: ev.cost(lay.config(scn, g)))
+        res = refine(ev, lay, np.array(start, float), max_nfev=20)
         return Screen(effect.name, res.theta, res.cost, True, "exact (sensor effect, no simulation)",
                       sensitivity=res.jac)
     if effect.kind == "delay":

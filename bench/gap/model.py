@@ -175,7 +175,7 @@ def _early_encoder_misfit(run: Run, scn: Scenario, initial: InitialState, window
     short = initial.scenario(dataclasses.replace(scn, duration=horizon))
     enc = scn.platform.sensors.encoder
     model = sample_trace(testbed_trace(short, {}), Grid(times, period, initial),
-                         enc_scale=(enc.scale_error_l, enc.scale_error_r))
+                         enc_scale=(enc.scale_error_l, enc.scale_error_r), enc_latency=enc.latency)
     meas = {"enc_wl": el[1:][: times["enc_wl"].size], "enc_wr": er[1:][: times["enc_wr"].size]}
     return float(sum(np.sum((meas[c] - model[c]) ** 2) for c in times))
 
@@ -248,6 +248,7 @@ def apply_overrides(scn: Scenario, overrides: Mapping[str, Any]) -> Scenario:
 def testbed_trace(scn: Scenario, overrides: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """Noise-free physics-rate signals of the testbed for ``scn`` with ``overrides``."""
     from bench.sim import run_physics, truth_from_trace
+    from bench.sim.startup import initial_wheel_speeds
 
     s = apply_overrides(scn, overrides)
     tr = run_physics(s, 0)
@@ -255,20 +256,26 @@ def testbed_trace(scn: Scenario, overrides: Mapping[str, Any]) -> dict[str, np.n
     out = {"t": tr["t"]}
     for c in TRACE_COLUMNS[1:]:
         out[c] = np.ascontiguousarray(truth[c])
+    out["w_init"] = np.array(initial_wheel_speeds(s))  # each side's wheel speed at t = 0 (encoder latency)
     return out
 
 
 def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0,
                  enc_scale: tuple[float, float] = (0.0, 0.0), gyro_bias: float = 0.0,
-                 x_offset: tuple[float, float] | None = None) -> dict[str, np.ndarray]:
+                 x_offset: tuple[float, float] | None = None, enc_latency: float = 0.0) -> dict[str, np.ndarray]:
     """Model channels at the measured sample times from a physics-rate trace.
 
     ``shift`` delays every signal by ``shift`` s (the signal at t is the trace at t - shift,
     the initial value before): the time-shift surrogate of an actuator delay.
     Encoder: mean wheel speed over the counting period (the noise-free counterpart of the count
-    difference), times (1 + scale error); the first sample is 0 as the encoder's is.
+    difference), times (1 + scale error); the first sample is 0 as the encoder's is.  ``enc_latency`` [s]:
+    the encoder reports late, the angles counted are those at ``enc_latency`` before the sample times
+    (:func:`bench.sim.sensors.encoder_angles`, as the testbed's encoders; before the trace the wheel turns at
+    its initial speed: the trace's ``w_init`` (the testbed's start), else its first step's mean).
     Drive signals: the value of the physics step in force, as the testbed logs them.
     """
+    from bench.sim.sensors import encoder_angles  # the testbed's own rule (bench.sim loads pybullet: lazily)
+
     t_phys = trace["t"]
     out: dict[str, np.ndarray] = {}
 
@@ -280,7 +287,8 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
     ox, oy = (grid.initial.x - x0, grid.initial.y - y0) if x_offset is None else x_offset
     for c, tt in grid.times.items():
         if c in ("enc_wl", "enc_wr"):
-            th = at("th_l" if c == "enc_wl" else "th_r", tt)
+            side = "l" if c == "enc_wl" else "r"
+            th = encoder_angles(tt - shift, t_phys, trace[f"th_{side}"], _initial_rate(trace, side), enc_latency)
             prev = np.concatenate(([tt[0] - grid.enc_period], tt[:-1]))
             th_prev = np.concatenate(([th[0]], th[:-1]))
             scale = 1.0 + (enc_scale[0] if c == "enc_wl" else enc_scale[1])
@@ -305,6 +313,15 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
         elif c == "ref_yaw":
             out[c] = at("yaw", tt)
     return out
+
+
+def _initial_rate(trace: Mapping[str, np.ndarray], side: str) -> float:
+    """The wheel's speed at the trace's start [rad/s] (for encoder angles before it)."""
+    w = trace.get("w_init")
+    if w is not None:
+        return float(w[0 if side == "l" else 1])
+    th, t = trace[f"th_{side}"], trace["t"]
+    return float((th[1] - th[0]) / (t[1] - t[0])) if t.size > 1 else 0.0
 
 
 # ------------------------------------------------------------------------------------------------

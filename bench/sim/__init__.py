@@ -17,6 +17,7 @@ from bench.kinematics import icr_inverse
 from bench.run import Run
 from bench.sim import sensors as S
 from bench.sim.commands import SEEDED_COMMANDS, wheel_reference
+from bench.sim.startup import initial_wheel_speeds
 from bench.sim.testbed import GRAVITY, PhysicsTrace, run_physics
 from bench.spec import Scenario, to_dict
 
@@ -133,7 +134,9 @@ def assemble_run(tr: PhysicsTrace, scn: Scenario, seed: int) -> Run:
     cmd_l, cmd_r = wheel_reference(t, scn.command, plat, seed)
     cols["cmd_wl"], cols["cmd_wr"] = cmd_l, cmd_r
     te = times["enc"] / 1e6
-    enc_l, enc_r = S.encoders(te, at("th_l", te), at("th_r", te), scn, rng["encoder"])
+    lat, (w0_l, w0_r) = sen.encoder.latency, initial_wheel_speeds(scn)  # before t = 0: the start's wheel speeds
+    enc_l, enc_r = S.encoders(te, S.encoder_angles(te, t_phys, truth["th_l"], w0_l, lat),
+                              S.encoder_angles(te, t_phys, truth["th_r"], w0_r, lat), scn, rng["encoder"])
     cols["enc_wl"], cols["enc_wr"] = place(times["enc"], enc_l), place(times["enc"], enc_r)
     tl = times["log"] / 1e6
     step_idx = np.minimum(np.searchsorted(t_phys, tl, side="right") - 1, t_phys.size - 1)

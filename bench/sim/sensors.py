@@ -5,7 +5,8 @@ spawned once per sensor in a fixed order), so the same seed gives the same numbe
 order sensors are evaluated in, serial or parallel.
 
 * Encoders: wheel angle quantised to ``counts_per_rev``; speed = count difference / period
-  (Wang 2015: 8192 counts/rev).  Optional scale error (gap catalogue).
+  (Wang 2015: 8192 counts/rev).  Optional scale error and latency (gap catalogue): with latency L the sample
+  at t counts the wheel angles at t - L - 1/rate and t - L (:func:`encoder_angles`).
 * IMU at the centre of mass: specific force ``R^T (a - g)`` and body rates, white noise plus a
   bias random walk, saturation (Yi 2009: 125 Hz).
 * GNSS (antenna at the CoM): position, velocity, dual-antenna heading; white noise, a decaying
@@ -34,6 +35,20 @@ def sample_times(rate_hz: float, duration: float) -> np.ndarray:
 def streams(seed: int) -> dict[str, np.random.Generator]:
     children = np.random.SeedSequence(seed).spawn(len(SENSOR_STREAMS))
     return {name: np.random.default_rng(ss) for name, ss in zip(SENSOR_STREAMS, children)}
+
+
+def encoder_angles(t: np.ndarray, t_phys: np.ndarray, theta: np.ndarray, w0: float, latency: float) -> np.ndarray:
+    """Wheel angles [rad] an encoder with ``latency`` [s] reports at sample times ``t``: the physics-rate angle
+    ``theta`` (times ``t_phys``) at ``t - latency``, linearly interpolated.  Before the trace begins the wheel turns
+    at its initial speed ``w0`` [rad/s] (a run starts in a steady state: at rest, or moving as
+    :mod:`bench.sim.startup` sets it up).  Latency 0 is plain interpolation at ``t``, bit for bit."""
+    if latency == 0.0:
+        return np.interp(t, t_phys, theta)
+    tq = np.asarray(t, float) - latency
+    out = np.interp(tq, t_phys, theta)
+    before = tq < t_phys[0]
+    out[before] = theta[0] + w0 * (tq[before] - t_phys[0])
+    return out
 
 
 def encoders(t: np.ndarray, theta_l: np.ndarray, theta_r: np.ndarray, scn: Scenario,
