@@ -6,7 +6,6 @@ before the field existed."""
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 
 import numpy as np
@@ -95,30 +94,3 @@ def test_encoder_latency_delays_the_simulated_samples_by_whole_periods():
 def test_encoder_latency_range_is_checked():
     with pytest.raises(SpecError, match="latency"):
         load_scenario("gap_test_coulomb", {"platform.sensors.encoder.latency": -0.01})
-
-
-# sha256 (first 16 hex) of the simulated runs' data columns (names and float64 bytes) made by commit a5a8b3c, before
-# EncoderSpec had a latency, under the CPU pin (bench.cpu): the default 0 must not change a bit.
-RUN_SHA_BEFORE_LATENCY = {
-    "coulomb_rest": ("gap_test_coulomb", {"duration": 2.0}, 3, "7ef6ea724b16262f"),
-    "husky_moving": ("real_husky_asphalt", {"duration": 1.0, "initial_speed": 0.4}, 5, "e65cd9736b07241a"),
-}
-
-
-@pytest.mark.parametrize("case", sorted(RUN_SHA_BEFORE_LATENCY))
-def test_default_encoder_latency_leaves_the_run_bit_for_bit(case):
-    from bench.cpu import dispatch_state
-    from bench.sim import simulate
-
-    if dispatch_state() != "baseline":
-        pytest.skip("the hashes were made under the CPU pin (python -m bench.cpu ...)")
-    name, over, seed, sha = RUN_SHA_BEFORE_LATENCY[case]
-    scn = load_scenario(name, over)
-    assert scn.platform.sensors.encoder.latency == 0.0
-    run = simulate(scn, seed)
-    h = hashlib.sha256()
-    for c in run.data.columns:
-        h.update(c.encode())
-        v = run.data[c].to_numpy(dtype=np.float64)
-        h.update(np.ascontiguousarray(np.where(np.isnan(v), np.nan, v)).tobytes())
-    assert h.hexdigest()[:16] == sha
