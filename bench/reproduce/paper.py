@@ -157,7 +157,7 @@ class PaperResult:
     notes: dict[str, str]
     seconds: float
     info: dict[str, Any]
-    figure_bytes: dict[str, bytes] = field(default_factory=dict)
+    file_bytes: dict[str, bytes] = field(default_factory=dict)  # results-relative path -> bytes this computation wrote
 
 
 def _result_cache(runner: Runner) -> Path:
@@ -199,9 +199,10 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
         log(f"{paper}: unchanged since the last run, results taken from the cache")
         runner.stats["result_cache_hits"] = runner.stats.get("result_cache_hits", 0) + 1
         write_paper(hit, out_dir)
-        _copy_figures(hit, out_dir)
+        _copy_files(hit, out_dir)
         return hit
     ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick, extended=extended)
+    before = _file_stamps(out_dir)
     module = importlib.import_module(decl["module"])
     runner.served.clear()
     metrics: dict[str, float] = {}
@@ -238,16 +239,26 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
     res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
     write_paper(res, out_dir)
-    res.figure_bytes = {rel: (out_dir.parent / rel).read_bytes() for rel, _ in ctx.figures
-                        if (out_dir.parent / rel).is_file()}
+    # every file this computation wrote (tables, notes, figures, the compute functions' own files): a cache hit
+    # writes them back, also into another results folder
+    after = _file_stamps(out_dir)
+    res.file_bytes = {str(p.relative_to(out_dir.parent)): p.read_bytes() for p, stamp in after.items()
+                      if before.get(p) != stamp}
     if use_cache:
         _store_result(_result_cache(runner), paper, key, res)
     return res
 
 
-def _copy_figures(res: PaperResult, out_dir: Path) -> None:
-    """Figures of a cached result, written back when missing (e.g. into another results folder)."""
-    for rel, data in getattr(res, "figure_bytes", {}).items():
+def _file_stamps(folder: Path) -> dict[Path, tuple[int, int]]:
+    """(mtime_ns, size) of every file under ``folder`` (empty when it does not exist)."""
+    return {p: (st.st_mtime_ns, st.st_size) for p in folder.rglob("*") if p.is_file() and (st := p.stat())} \
+        if folder.is_dir() else {}
+
+
+def _copy_files(res: PaperResult, out_dir: Path) -> None:
+    """The files a cached result's computation wrote, written back when missing or different (e.g. into another
+    results folder)."""
+    for rel, data in res.file_bytes.items():
         target = out_dir.parent / rel
         if not target.is_file() or target.read_bytes() != data:
             with atomic_path(target) as tmp:
