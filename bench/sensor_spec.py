@@ -7,15 +7,9 @@ import math
 import types
 from dataclasses import dataclass, field
 
+from bench.schema import nonneg, positive
+
 __all__ = ["EncoderSpec", "ImuSpec", "GnssSpec", "ReferenceSpec", "SensorSpec"]
-
-
-def _positive(x: float) -> bool:
-    return x > 0 and math.isfinite(x)
-
-
-def _nonneg(x: float) -> bool:
-    return x >= 0 and math.isfinite(x)
 
 
 @dataclass(frozen=True)
@@ -29,7 +23,7 @@ class EncoderSpec:
     latency: float = 0.0
     _checks = {
         "counts_per_rev": (lambda x: x > 0, "> 0"),
-        "rate_hz": (_positive, "> 0"),
+        "rate_hz": (positive, "> 0"),
         "scale_error_l": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
         "scale_error_r": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
         "latency": (lambda x: 0 <= x <= 2 and math.isfinite(x), "in [0, 2] s"),
@@ -46,10 +40,10 @@ class ImuSpec:
     gyro_bias_z: float = 0.0  # constant gyro z bias [rad/s] (gap catalogue)
     saturation_accel: float = 80.0
     saturation_gyro: float = 8.0
-    _checks = {k: (_nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
-        "rate_hz": (_positive, "> 0"),
-        "saturation_accel": (_positive, "> 0"),
-        "saturation_gyro": (_positive, "> 0"),
+    _checks = {k: (nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
+        "rate_hz": (positive, "> 0"),
+        "saturation_accel": (positive, "> 0"),
+        "saturation_gyro": (positive, "> 0"),
         "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
     }
 
@@ -66,13 +60,13 @@ class GnssSpec:
     dropout_prob: float = 0.0  # probability a sample is missing
     outages: tuple[tuple[float, float], ...] = ()  # [(t_start, t_end), ...] with no fix
     _checks = {
-        "rate_hz": (_positive, "> 0"),
-        "pos_noise": (_nonneg, ">= 0"),
-        "vel_noise": (_nonneg, ">= 0"),
-        "yaw_noise": (_nonneg, ">= 0"),
-        "drift_walk": (_nonneg, ">= 0"),
-        "initial_drift": (_nonneg, ">= 0"),
-        "drift_tau": (_positive, "> 0"),
+        "rate_hz": (positive, "> 0"),
+        "pos_noise": (nonneg, ">= 0"),
+        "vel_noise": (nonneg, ">= 0"),
+        "yaw_noise": (nonneg, ">= 0"),
+        "drift_walk": (nonneg, ">= 0"),
+        "initial_drift": (nonneg, ">= 0"),
+        "drift_tau": (positive, "> 0"),
         "dropout_prob": (lambda x: 0 <= x < 1, "in [0, 1)"),
     }
 
@@ -87,9 +81,9 @@ class ReferenceSpec:
     yaw_noise: float = 0.002  # [rad]
     _checks = {
         "kind": (lambda x: x in ("vision", "laser", "dgps", "mocap", "icp"), "one of vision, laser, dgps, mocap, icp"),
-        "rate_hz": (_positive, "> 0"),
-        "pos_noise": (_nonneg, ">= 0"),
-        "yaw_noise": (_nonneg, ">= 0"),
+        "rate_hz": (positive, "> 0"),
+        "pos_noise": (nonneg, ">= 0"),
+        "yaw_noise": (nonneg, ">= 0"),
     }
 
 

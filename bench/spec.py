@@ -23,17 +23,9 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
-from bench.schema import SpecError, build
+from bench.schema import SpecError, build, nonneg, positive
 from bench.sensor_spec import EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec
 from bench.sources import Source, Sources, default_sources, file_sources, parameters
-
-
-def _positive(x: float) -> bool:
-    return x > 0 and math.isfinite(x)
-
-
-def _nonneg(x: float) -> bool:
-    return x >= 0 and math.isfinite(x)
 
 
 # --------------------------------------------------------------------------------------------
@@ -60,16 +52,16 @@ class MotorSpec:
     motors_per_side: int = 2
 
     _checks = {
-        "stall_torque": (_positive, "> 0"),
-        "no_load_speed": (_positive, "> 0"),
-        "nominal_voltage": (_positive, "> 0"),
-        "torque_constant": (_positive, "> 0"),
-        "max_current": (_positive, "> 0"),
-        "gear_ratio": (_positive, "> 0"),
+        "stall_torque": (positive, "> 0"),
+        "no_load_speed": (positive, "> 0"),
+        "nominal_voltage": (positive, "> 0"),
+        "torque_constant": (positive, "> 0"),
+        "max_current": (positive, "> 0"),
+        "gear_ratio": (positive, "> 0"),
         "pwm": (lambda x: 0 < x <= 1, "in (0, 1]"),
-        "supply_voltage": (_positive, "> 0"),
-        "controller_loss": (_nonneg, ">= 0"),
-        "max_power": (_nonneg, ">= 0"),
+        "supply_voltage": (positive, "> 0"),
+        "controller_loss": (nonneg, ">= 0"),
+        "max_power": (nonneg, ">= 0"),
         "gear_efficiency": (lambda x: 0 < x <= 1, "in (0, 1]"),
         "motors_per_side": (lambda x: x in (1, 2), "1 or 2"),
     }
@@ -89,11 +81,11 @@ class PidSpec:
     gain_scale: float = 1.0  # Yu's gains are on the linear speed [m/s]: scale = wheel radius
 
     _checks = {
-        "kp": (_nonneg, ">= 0"),
-        "ki": (_nonneg, ">= 0"),
-        "kd": (_nonneg, ">= 0"),
-        "rate_hz": (_positive, "> 0"),
-        "gain_scale": (_positive, "> 0"),
+        "kp": (nonneg, ">= 0"),
+        "ki": (nonneg, ">= 0"),
+        "kd": (nonneg, ">= 0"),
+        "rate_hz": (positive, "> 0"),
+        "gain_scale": (positive, "> 0"),
     }
 
 
@@ -160,19 +152,19 @@ class Platform:
     sources: Sources = field(default_factory=Sources, compare=False, repr=False)
 
     _checks = {
-        "mass": (_positive, "> 0 kg"),
-        "yaw_inertia": (_positive, "> 0 kg m^2"),
-        "track": (_positive, "> 0 m"),
-        "wheelbase": (_positive, "> 0 m"),
-        "wheel_radius": (_positive, "> 0 m"),
-        "wheel_width": (_positive, "> 0 m"),
-        "patch_length": (_positive, "> 0 m"),
-        "patch_gap": (_nonneg, ">= 0 m"),
-        "wheel_inertia": (_positive, "> 0 kg m^2"),
-        "cg_height": (_positive, "> 0 m"),
-        "body_length": (_positive, "> 0 m"),
-        "body_width": (_positive, "> 0 m"),
-        "body_height": (_positive, "> 0 m"),
+        "mass": (positive, "> 0 kg"),
+        "yaw_inertia": (positive, "> 0 kg m^2"),
+        "track": (positive, "> 0 m"),
+        "wheelbase": (positive, "> 0 m"),
+        "wheel_radius": (positive, "> 0 m"),
+        "wheel_width": (positive, "> 0 m"),
+        "patch_length": (positive, "> 0 m"),
+        "patch_gap": (nonneg, ">= 0 m"),
+        "wheel_inertia": (positive, "> 0 kg m^2"),
+        "cg_height": (positive, "> 0 m"),
+        "body_length": (positive, "> 0 m"),
+        "body_width": (positive, "> 0 m"),
+        "body_height": (positive, "> 0 m"),
         "wheel_radius_scale_l": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "wheel_radius_scale_r": (lambda x: 0.5 < x < 1.5, "in (0.5, 1.5)"),
         "actuator_delay": (lambda x: 0 <= x < 2, "in [0, 2) s"),
@@ -185,7 +177,7 @@ class Platform:
         "command_accel_mean": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
         "command_accel_diff": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
         "wheel_speed_limit": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
-        "payload": (_nonneg, ">= 0 kg"),
+        "payload": (nonneg, ">= 0 kg"),
         "tire_pressure": (lambda x: 0 <= x <= 1e6, "in [0, 1e6] Pa (0: no pneumatic tire; 145 psi)"),
         "tire_modulus": (lambda x: 0 <= x <= 1e9, "in [0, 1e9] Pa (0: no solid tire)"),
         "tire_rolling_resistance": (lambda x: -0.2 < x < 0.2, "in (-0.2, 0.2) (added to the terrain's)"),
@@ -253,19 +245,19 @@ class Terrain:
     _checks = {
         "soil_model": (lambda x: x in ("rigid", "bekker"), "'rigid' or 'bekker'"),
         "soil_n": (lambda x: 0 < x < 1.5, "in (0, 1.5)"),
-        "soil_k_c": (_nonneg, ">= 0 N/m^(n+1)"),
-        "soil_k_phi": (_nonneg, ">= 0 N/m^(n+2)"),
-        "soil_cohesion": (_nonneg, ">= 0 Pa"),
+        "soil_k_c": (nonneg, ">= 0 N/m^(n+1)"),
+        "soil_k_phi": (nonneg, ">= 0 N/m^(n+2)"),
+        "soil_cohesion": (nonneg, ">= 0 Pa"),
         "soil_friction_angle": (lambda x: 0 <= x < math.radians(60), "in [0, 60) deg"),
         "model": (lambda x: x in ("coulomb", "janosi"), "'coulomb' or 'janosi'"),
         "mu_sa": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_op": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_lat_ratio": (lambda x: 0.1 < x < 5, "in (0.1, 5)"),
-        "shear_modulus": (_positive, "> 0 m"),
+        "shear_modulus": (positive, "> 0 m"),
         "shear_modulus_lat_ratio": (lambda x: 0.2 < x < 5, "in (0.2, 5)"),
         "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
         "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),
-        "slip_velocity_eps": (_positive, "> 0"),
+        "slip_velocity_eps": (positive, "> 0"),
         "roughness_gd0": (lambda x: 0 <= x < 0.1, "in [0, 0.1) m^3 (ISO 8608 G_d(n0))"),
         "roughness_spacing": (lambda x: 0.01 <= x <= 1.0, "in [0.01, 1] m"),
         "roughness_length_x": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),
@@ -314,8 +306,8 @@ class CommandSpec:
             "one of wheel_speeds, v_radius, v_curvature_ratio, lemniscate, random, rotation",
         ),
         "units": (lambda x: x in ("rad/s", "rpm", "m/s"), "one of rad/s, rpm, m/s"),
-        "accel": (_nonneg, ">= 0"),
-        "step": (_positive, "> 0"),
+        "accel": (nonneg, ">= 0"),
+        "step": (positive, "> 0"),
     }
 
 
@@ -339,7 +331,7 @@ class Scenario:
     _checks = {
         "duration": (lambda x: 0 < x <= 4 * 3600, "in (0, 14400] s"),
         "dt": (lambda x: 1e-4 <= x <= 0.02, "in [1e-4, 0.02] s"),
-        "log_rate_hz": (_positive, "> 0"),
+        "log_rate_hz": (positive, "> 0"),
         "initial_yaw_rate": (lambda x: math.isfinite(x) and abs(x) <= 10.0, "in [-10, 10] rad/s"),
         "initial_skid_ratio": (lambda x: 0.0 <= x <= 20.0, "in [0, 20]"),
     }

@@ -152,9 +152,13 @@ def _cmd_limit_spec(scn, v):
     return {"platform.command_limit_mean": v[0], "platform.command_limit_diff": v[1]}
 
 
+def _finite(values: tuple[float, ...]) -> tuple[float, ...] | None:
+    """``values`` when all are finite (a limit the scenario already has), else None (no limit: no neutral value)."""
+    return values if all(map(math.isfinite, values)) else None
+
+
 def _cmd_limit_neutral(scn):
-    lim = (scn.platform.command_limit_mean, scn.platform.command_limit_diff)
-    return lim if all(map(math.isfinite, lim)) else None
+    return _finite((scn.platform.command_limit_mean, scn.platform.command_limit_diff))
 
 
 def _wheel_limit_spec(scn, v):
@@ -162,8 +166,7 @@ def _wheel_limit_spec(scn, v):
 
 
 def _wheel_limit_neutral(scn):
-    lim = scn.platform.wheel_speed_limit
-    return (lim,) if math.isfinite(lim) else None
+    return _finite((scn.platform.wheel_speed_limit,))
 
 
 def _cmd_accel_spec(scn, v):
@@ -171,8 +174,7 @@ def _cmd_accel_spec(scn, v):
 
 
 def _cmd_accel_neutral(scn):
-    acc = (scn.platform.command_accel_mean, scn.platform.command_accel_diff)
-    return acc if all(map(math.isfinite, acc)) else None
+    return _finite((scn.platform.command_accel_mean, scn.platform.command_accel_diff))
 
 
 def _torque_spec(scn, v):
