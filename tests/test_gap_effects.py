@@ -6,7 +6,6 @@ of an anisotropic Coulomb spot turn), not numbers of a previous run."""
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import numpy as np
 import pytest

@@ -20,7 +20,7 @@ from bench.reproduce.claims import (check_claim, check_published_on, claim_table
                                     row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
-from bench.reproduce.runner import REPO, Runner
+from bench.reproduce.runner import Runner
 from bench.reproduce.sources import calibration_targets
 from bench.paths import default_results
 from bench.spec import SCENARIO_DIR, SpecError
@@ -251,8 +251,8 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
 
 def _file_stamps(folder: Path) -> dict[Path, tuple[int, int]]:
     """(mtime_ns, size) of every file under ``folder`` (empty when it does not exist)."""
-    return {p: (st.st_mtime_ns, st.st_size) for p in folder.rglob("*") if p.is_file() and (st := p.stat())} \
-        if folder.is_dir() else {}
+    stats = ((p, p.stat()) for p in folder.rglob("*") if p.is_file())  # rglob of a missing folder yields nothing
+    return {p: (st.st_mtime_ns, st.st_size) for p, st in stats}
 
 
 def _copy_files(res: PaperResult, out_dir: Path) -> None:
