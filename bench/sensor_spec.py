@@ -40,11 +40,21 @@ class ImuSpec:
     gyro_bias_z: float = 0.0  # constant gyro z bias [rad/s] (gap catalogue)
     saturation_accel: float = 80.0
     saturation_gyro: float = 8.0
+    # mounting (gap catalogue; bench.sim.sensors.imu_mounting): the gyro's z gain (-1: mounted upside down),
+    # the sensor axes turned by yaw_misalignment [rad] about z, the sensor at (lever_x, lever_y) [m] from the CoM
+    gyro_scale_z: float = 1.0
+    yaw_misalignment: float = 0.0
+    lever_x: float = 0.0
+    lever_y: float = 0.0
     _checks = {k: (nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
         "rate_hz": (positive, "> 0"),
         "saturation_accel": (positive, "> 0"),
         "saturation_gyro": (positive, "> 0"),
         "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
+        "gyro_scale_z": (lambda x: 0.1 <= abs(x) <= 2, "0.1 <= |x| <= 2"),
+        "yaw_misalignment": (lambda x: abs(x) <= math.pi, "|x| <= pi rad"),
+        "lever_x": (lambda x: abs(x) <= 2, "|x| <= 2 m"),
+        "lever_y": (lambda x: abs(x) <= 2, "|x| <= 2 m"),
     }
 
 

@@ -325,3 +325,31 @@ def test_powertrain_lag_reference_is_the_first_order_step_response():
         assert np.allclose(lag[k:seg], plain[k] * (1 - np.exp(-t / tau)), rtol=0, atol=1e-9 * abs(plain[k]))
     assert C.get("powertrain_lag").spec_overrides(scn, (0.1, 0.2)) == {
         "platform.powertrain_tau_l": 0.1, "platform.powertrain_tau_r": 0.2}
+
+
+def test_pose_channels_take_part_in_the_where_analysis_by_the_growth_of_their_error():
+    """A heading error made only in regime 1 (the model's yaw drifts there at a constant rate, then holds the
+    error) is found there: the excess of regime 1 is the closed form w (d^2 / (2 sigma^2) - noise2) of the
+    per-sample increment d, regime 0 (where the error only persists) has none, and the time profile puts the
+    excess in the bins of the drift.  With the pose left out, as before, neither regime had any excess."""
+    from bench.gap.residuals import ResidualSpace, regime_table, time_profile
+
+    t = np.arange(200) * 0.05
+    reg = np.where((t >= 3.0) & (t < 6.0), 1, 0)
+    rate, sigma, sigma_hat = 0.2, 0.003, 0.001  # [rad/s], [rad]
+    drift = rate * np.clip(t - 3.0, 0.0, 3.0)  # made in regime 1, kept after it
+    sp = ResidualSpace(channels=("enc_wl", "ref_yaw"), t={"enc_wl": t, "ref_yaw": t},
+                       meas={"enc_wl": np.ones_like(t), "ref_yaw": drift}, sigma_hat={"enc_wl": 0.1, "ref_yaw": sigma_hat},
+                       sigma={"enc_wl": 0.1, "ref_yaw": sigma}, weight={"enc_wl": 1.0, "ref_yaw": 1.0},
+                       regime={"enc_wl": reg, "ref_yaw": reg}, regime_names=("cruise", "turn"), missing=())
+    model = {"enc_wl": np.ones_like(t), "ref_yaw": np.zeros_like(t)}
+    tab = regime_table(sp, model)
+    d = rate * 0.05
+    inside = (reg[1:] == 1)
+    expect = np.mean(np.where(np.diff(drift) > 0, d, 0.0)[inside] ** 2) / (2 * sigma**2) - (sigma_hat / sigma) ** 2
+    assert tab["turn"]["excess_cost"] == pytest.approx(expect, rel=1e-9)
+    assert tab["cruise"]["excess_cost"] == 0.0  # the error is still there (normalised RMS > 1) but not made here
+    assert tab["cruise"]["normalised_rms"]["ref_yaw"] > 10
+    assert max(tab["turn"]["local_rms"], key=tab["turn"]["local_rms"].get) == "ref_yaw"
+    centres, prof = time_profile(sp, model, bin_s=0.5)
+    assert np.all(prof[(centres > 3.25) & (centres < 5.75)] > 0) and np.all(prof[(centres < 2.75) | (centres > 6.25)] == 0)

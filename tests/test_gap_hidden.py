@@ -61,10 +61,13 @@ CASES = [
     ("encoder_scale", JAN, {"platform.sensors.encoder.scale_error_l": -0.04}, 110, {"scale_error_l": -0.04}),
     ("gyro_bias", COUL, {"platform.sensors.imu.gyro_bias_z": -0.015}, 111, {"gyro_bias_z": -0.015}),
     ("encoder_latency", JAN, {"platform.sensors.encoder.latency": 0.12}, 119, {"latency": 0.12}),
+    ("gyro_scale", COUL, {"platform.sensors.imu.gyro_scale_z": -1.0}, 123, {"gyro_scale_z": -1.0}),
+    ("imu_mounting", JAN, {"platform.sensors.imu.yaw_misalignment": 0.12, "platform.sensors.imu.lever_x": -0.25},
+     124, {"yaw_misalignment": 0.12, "lever_x": -0.25}),
 ]
 DEFAULT_RUN = {"rolling_resistance", "shear_displacement", "wheel_radius", "motor_saturation", "encoder_scale",
                "command_limit", "powertrain_lag", "wheel_speed_limit", "command_accel", "lateral_friction",
-               "motor_torque", "encoder_latency"}
+               "motor_torque", "encoder_latency", "gyro_scale", "imu_mounting"}
 
 
 def _measured(sim, scenario: str, seed: int, hidden: dict):

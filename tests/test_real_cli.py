@@ -306,6 +306,28 @@ def test_real_gap_runs_on_another_robot_from_its_platform_toml(clean, tmp_path, 
     assert "husky" not in capsys.readouterr().out.lower()
 
 
+def test_real_gap_fits_several_calibration_steps_each_on_its_own(clean, tmp_path, capsys):
+    """--fit-steps 3: the first three calibration-half steps (table order), each replayed from its own initial state
+    (bench.gap.segments), none of them held out; the report says how the fit saw them."""
+    from bench.real.benchmark import split_steps
+    from bench.real.drive import import_drive_windows
+    from bench.real.windows import valid_windows
+
+    out = tmp_path / "gap"
+    assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
+                 "--json", str(tmp_path / "g.json"), "--workers", "1", "--fit-steps", "3", "--max-effects", "1"]) == 0
+    doc = json.loads((tmp_path / "g.json").read_text())
+    allw = import_drive_windows(clean[0])
+    w = allw.subset(valid_windows(allw))
+    calib, test = split_steps(w, 0)
+    firsts = [int(s) for s in dict.fromkeys(w.calib_step.tolist()) if int(s) in set(int(c) for c in calib)][:3]
+    assert doc["fit_separate"] is True and doc["fit_steps"] == firsts
+    assert not set(doc["fit_steps"]) & set(doc["held_out_steps"])
+    assert doc["bounds"]["max_effects"] == 1 and len(doc["workflow"]["candidates"]) <= 1
+    md = (out / "robot_x-bigbot_gap.md").read_text()
+    assert "each replayed on its own from its measured initial state" in md
+
+
 def test_real_gap_names_the_field_a_platform_toml_lacks(clean, tmp_path, capsys):
     bad = _platform_toml(tmp_path, drop="mass")
     assert main(["real-gap", str(clean[0]), "--platform", str(bad), "--out", str(tmp_path / "o")]) == 2

@@ -44,7 +44,8 @@ def gap_run(slice30: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0) -> dict[str, np.ndarray]:
     """measured - model for imu_gz and the encoders: the model's yaw rate interpolated at the gyro's
-    sample times (+ bias); its wheel angle differenced over each encoder sample interval."""
+    sample times (+ bias); its wheel angle differenced over each encoder sample interval (the wheel speeds the
+    DRIVE logger wrote again between the 10 Hz reports left out)."""
     rscn, _ = gap_model.replay_scenario(run, scn)
     tr = gap_model.testbed_trace(rscn, overrides)
     out = {}
@@ -52,10 +53,12 @@ def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0) -> 
     g = run["imu_gz"]
     ok = np.isfinite(g)
     out["imu_gz"] = g[ok] - (np.interp(t[ok], tr["t"], tr["wz"]) + gyro_bias)
-    period = float(np.median(np.diff(t)))
+    wl, wr = run["enc_wl"], run["enc_wr"]  # a pair equal to the previous one (not at rest) is the logger's repeat
+    held = np.r_[False, (wl[1:] == wl[:-1]) & (wr[1:] == wr[:-1]) & ((wl[1:] != 0) | (wr[1:] != 0))]
+    period = float(np.median(np.diff(t[np.isfinite(wl) & ~held])))
     for c, th, e in (("enc_wl", "th_l", enc_scale[0]), ("enc_wr", "th_r", enc_scale[1])):
         v = run[c]
-        ok = np.isfinite(v)
+        ok = np.isfinite(v) & ~held
         tt = t[ok]
         ang = np.interp(tt, tr["t"], tr[th])
         prev_t = np.r_[tt[0] - period, tt[:-1]]

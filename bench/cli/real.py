@@ -8,6 +8,7 @@ Registered as an extra by :mod:`bench.cli.reproduce` (first of the extras, as be
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from bench.cli import command, count
@@ -108,6 +109,11 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", type=Path, default=None, help="also copy the JSON document here")
     p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
     p.add_argument("--full", action="store_true", help="every held-out step and three fit steps (slow)")
+    p.add_argument("--fit-steps", type=count(1), default=None, metavar="N",
+                   help="fit on the first N calibration steps, each replayed on its own from its measured initial "
+                        "state (bench.gap.segments), instead of the first consecutive ones as one run")
+    p.add_argument("--max-effects", type=count(1), default=None, metavar="K", help="effects selected at most "
+                   "(default 2)")
     p.add_argument("--workers", type=count(1), default=None)
 
 
@@ -117,7 +123,12 @@ def _real_gap(a: argparse.Namespace) -> int:
 
     name = nominal_scenario(a.platform, a.terrain).platform.name  # a missing spec field stops here, before any run
     label = f"{a.data.stem}-{name}"
-    r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=FULL if a.full else BOUNDED,
+    config = FULL if a.full else BOUNDED
+    if a.fit_steps is not None:
+        config = dataclasses.replace(config, n_fit=a.fit_steps, separate=True)
+    if a.max_effects is not None:
+        config = dataclasses.replace(config, max_effects=a.max_effects)
+    r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=config,
                      workers=a.workers, label=label)
     ho = r["doc"]["held_out"]["cost"]
     print(f"{r['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> {ho['after_mean']:.4g} "

@@ -38,7 +38,7 @@ from bench.gap.catalogue import CATALOGUE, BY_NAME, Effect, ModelConfig, get, no
 from bench.gap.fit import Evaluator, FitResult
 from bench.gap.model import measured_grid, plugin_trace, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
-from bench.gap.residuals import CHANNELS, CUMULATIVE_CHANNELS, ResidualSpace, build_space, gap_table, regime_table, time_profile
+from bench.gap.residuals import CHANNELS, ResidualSpace, build_space, gap_table, regime_table, time_profile
 from bench.gap.select import Selection, Thresholds, run_selection
 from bench.run import Run, RunError
 from bench.spec import Scenario, load_scenario
@@ -135,7 +135,7 @@ def _concentration(space: ResidualSpace, signals: Mapping[str, np.ndarray], regi
         worst = max(pool, key=lambda r: pool[r]["excess_cost"])
         share = regimes[worst]["excess_cost"] * regimes[worst]["time_share"]
         tot = sum(v["excess_cost"] * v["time_share"] for v in regimes.values())
-        chans = {c: v for c, v in regimes[worst]["normalised_rms"].items() if c not in CUMULATIVE_CHANNELS}
+        chans = regimes[worst].get("local_rms", {})  # the pose channels by the growth of their error
         out["regime"] = worst
         out["regime_share"] = float(share / tot) if tot > 0 else 0.0
         out["regime_channel"] = max(chans, key=chans.get) if chans else ""
@@ -157,18 +157,24 @@ def _effect_entry(name: str, fit: FitResult, scn: Scenario) -> dict[str, Any]:
     }
 
 
-def find_gap(measured: Run, scenario: str | Path | Scenario, model: str = "testbed", *,
+def find_gap(measured: Run | Sequence[Run], scenario: str | Path | Scenario, model: str = "testbed", *,
              overrides: Mapping[str, Any] | None = None, catalogue: Sequence[Effect] = CATALOGUE,
              thresholds: Thresholds = Thresholds(), workers: int | None = None,
              channels: Sequence[str] | None = None,
              progress: Callable[[str], None] | None = None) -> GapResult:
     """Run the gap workflow on ``measured`` against ``scenario``'s nominal model (see module doc).
 
+    ``measured`` may be a sequence of runs of the same robot: one model is fitted to all of them, each replayed
+    from its own initial state (:mod:`bench.gap.segments`; the testbed model only, every channel the runs share).
+
     ``overrides`` change the nominal model's spec (dotted keys as ``--set``); ``workers`` is the
     process-pool size for simulations (default min(2, cpus)); ``channels`` restricts the residual
     channels.
     """
     t_start = time.perf_counter()
+    if not isinstance(measured, Run):  # several runs: one model fitted to all (bench.gap.segments)
+        return _find_gap_segments(list(measured), scenario, model, overrides=overrides, catalogue=catalogue,
+                                  thresholds=thresholds, workers=workers, progress=progress, t_start=t_start)
     run = measured.without_truth()
     run.validate()
     scn0 = _resolve_scenario(scenario, overrides)
@@ -196,7 +202,22 @@ def find_gap(measured: Run, scenario: str | Path | Scenario, model: str = "testb
             grid = measured_grid(run, space.t, init, scn0)
             ev = Evaluator(rscn, grid, space, functools.partial(_const_trace, tr), workers=1, pose_offset=(0.0, 0.0))
     sel = run_selection(ev, catalogue, thresholds, physics_model=physics, progress=progress)
-    return _assemble(run, scn0, model, ev, sel, time.perf_counter() - t_start)
+    return _assemble(run.id, scn0, model, ev, sel, time.perf_counter() - t_start)
+
+
+def _find_gap_segments(runs: list[Run], scenario: str | Path | Scenario, model: str, *,
+                       overrides: Mapping[str, Any] | None, catalogue: Sequence[Effect], thresholds: Thresholds,
+                       workers: int | None, progress: Callable[[str], None] | None, t_start: float) -> GapResult:
+    from bench.gap.segments import segment_evaluator
+
+    if model != "testbed":
+        raise ValueError(f"several measured runs are fitted with the testbed model only, not {model!r}")
+    if not runs:
+        raise ValueError("no measured run")
+    scn0 = _resolve_scenario(scenario, overrides)
+    ev = segment_evaluator(runs, scn0, workers if workers is not None else min(2, os.cpu_count() or 1))
+    sel = run_selection(ev, catalogue, thresholds, physics_model=True, progress=progress)
+    return _assemble("+".join(r.id for r in runs), scn0, model, ev, sel, time.perf_counter() - t_start)
 
 
 def _fmt_params(entry: dict[str, Any]) -> str:
@@ -209,7 +230,7 @@ def _fmt_params(entry: dict[str, Any]) -> str:
     return ", ".join(parts)
 
 
-def _assemble(run: Run, scn: Scenario, model: str, ev: Evaluator, sel: Selection, elapsed: float) -> GapResult:
+def _assemble(run_id: str, scn: Scenario, model: str, ev: Evaluator, sel: Selection, elapsed: float) -> GapResult:
     space = ev.space
     sig_before = ev.signals(sel.nominal.config)
     sig_after = ev.signals(sel.final.config)
@@ -269,7 +290,7 @@ def _assemble(run: Run, scn: Scenario, model: str, ev: Evaluator, sel: Selection
         series["after"][c] = al_after[c]
     thr = sel.thresholds
     return GapResult(
-        run_id=run.id, scenario=scn.id, model=model, verdict=verdict, verdict_kind=kind, effects=effects,
+        run_id=run_id, scenario=scn.id, model=model, verdict=verdict, verdict_kind=kind, effects=effects,
         partial=partial, gap_before=gb, gap_after=ga, regimes_before=rb, regimes_after=ra,
         concentration={"before": conc_b, "after": conc_a}, cost=cost, candidates=candidates,
         channels_missing=list(space.missing), not_applicable=sel.not_applicable,

@@ -9,7 +9,7 @@ Kinds:
 
 * ``physics``: changes the testbed's physics; evaluating it needs a simulation.
 * ``sensor``: a deterministic sensor error; applied to the model's noise-free signals without
-  re-simulating (encoder scale error and latency, gyro bias).
+  re-simulating (encoder scale error and latency, gyro bias, gyro scale, IMU mounting).
 * ``delay``: actuator delay; simulated (the testbed delays the PID reference), screened on a
   time-shift surrogate of the nominal signals and fitted over the testbed's physics steps.
 
@@ -49,6 +49,8 @@ class ModelConfig:
     gyro_bias: float = 0.0
     shift: float = 0.0
     enc_latency: float = 0.0  # [s] the encoders report late (EncoderSpec.latency)
+    gyro_scale: float = 1.0  # gyro z gain (ImuSpec.gyro_scale_z; -1: upside down)
+    imu_mount: tuple[float, float, float] = (0.0, 0.0, 0.0)  # (yaw misalignment [rad], lever x, y [m]) (ImuSpec)
 
     def with_overrides(self, **kv: Any) -> "ModelConfig":
         d = dict(self.overrides)
@@ -208,6 +210,23 @@ def _enc_apply(scn, cfg, v):
 
 def _gyro_apply(scn, cfg, v):
     return cfg.replace(gyro_bias=v[0])
+
+
+def _gyro_scale_apply(scn, cfg, v):
+    return cfg.replace(gyro_scale=v[0])
+
+
+def _gyro_scale_spec(scn, v):
+    return {"platform.sensors.imu.gyro_scale_z": v[0]}
+
+
+def _mount_apply(scn, cfg, v):
+    return cfg.replace(imu_mount=(v[0], v[1], v[2]))
+
+
+def _mount_spec(scn, v):
+    return {"platform.sensors.imu.yaw_misalignment": v[0], "platform.sensors.imu.lever_x": v[1],
+            "platform.sensors.imu.lever_y": v[2]}
 
 
 def _delay_apply(scn, cfg, v):
@@ -395,6 +414,29 @@ CATALOGUE: tuple[Effect, ...] = (
         lambda s: (s.platform.sensors.encoder.latency,), _enc_latency_apply, _enc_latency_spec,
         probe_grid=tuple((0.025 * k,) for k in range(1, 21))),
     Effect(
+        "gyro_scale", "gyro scale or sign (IMU mounting)",
+        "Gain of the gyro's z rate: the yaw rate it reports is gain x the body's (-1: the IMU mounted upside "
+        "down or its z axis flipped in the driver; |gain| != 1: a scale error).",
+        (Param("gyro_scale_z", "-", -1.5, 1.5, 0.01),),
+        ("imu_gz",),
+        "measured yaw rate proportional to the model's, of the opposite sign for a flipped mount, in every "
+        "turn; zero on straight lines; pose and wheels agree", "sensor",
+        lambda s: (s.platform.sensors.imu.gyro_scale_z,), _gyro_scale_apply, _gyro_scale_spec,
+        probe_grid=((-1.0,),)),
+    Effect(
+        "imu_mounting", "IMU mounting (axes turned, lever arm)",
+        "The accelerometer's axes turned by yaw_misalignment [rad] about z from the body's, and the sensor "
+        "at (lever_x, lever_y) [m] from the centre of mass: it reads the CoM's specific force plus the "
+        "centripetal -w^2 r and tangential alpha x r terms of its lever arm (bench.sim.sensors.imu_mounting).",
+        (Param("yaw_misalignment", "rad", -0.6, 0.6, 0.02), Param("lever_x", "m", -1.0, 1.0, 0.02),
+         Param("lever_y", "m", -1.0, 1.0, 0.02)),
+        ("imu_ax", "imu_ay"),
+        "part of the forward acceleration in a_y (and of the lateral in a_x) on every manoeuvre for turned axes; "
+        "an extra -w^2 r in turns and alpha r when a turn starts or ends for a lever arm; gyro, pose and "
+        "wheels agree", "sensor",
+        lambda s: (s.platform.sensors.imu.yaw_misalignment, s.platform.sensors.imu.lever_x,
+                   s.platform.sensors.imu.lever_y), _mount_apply, _mount_spec),
+    Effect(
         "gyro_bias", "IMU gyro bias",
         "Constant bias of the gyro's z rate [rad/s].",
         (Param("gyro_bias_z", "rad/s", -0.5, 0.5, 0.005),),
@@ -417,8 +459,9 @@ def get(name: str) -> Effect:
 def nominal_config(scn: Scenario) -> ModelConfig:
     """The nominal model: the scenario as specified (its own sensor errors applied)."""
     enc = scn.platform.sensors.encoder
-    return ModelConfig((), (enc.scale_error_l, enc.scale_error_r), scn.platform.sensors.imu.gyro_bias_z, 0.0,
-                       enc.latency)
+    imu = scn.platform.sensors.imu
+    return ModelConfig((), (enc.scale_error_l, enc.scale_error_r), imu.gyro_bias_z, 0.0, enc.latency,
+                       imu.gyro_scale_z, (imu.yaw_misalignment, imu.lever_x, imu.lever_y))
 
 
 __all__ = ["Param", "Effect", "ModelConfig", "CATALOGUE", "BY_NAME", "get", "nominal_config"]

@@ -129,7 +129,8 @@ class Evaluator:
     def signals(self, cfg: ModelConfig) -> dict[str, np.ndarray]:
         tr = self.trace(cfg.overrides)
         return sample_trace(tr, self.grid, shift=cfg.shift, enc_scale=cfg.enc_scale, gyro_bias=cfg.gyro_bias,
-                            x_offset=self.pose_offset, enc_latency=cfg.enc_latency)
+                            x_offset=self.pose_offset, enc_latency=cfg.enc_latency, gyro_scale=cfg.gyro_scale,
+                            imu_mount=cfg.imu_mount)
 
     def z(self, cfg: ModelConfig) -> np.ndarray:
         return self.space.zvec(self.signals(cfg))

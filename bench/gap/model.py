@@ -226,12 +226,12 @@ def replay_scenario(run: Run, scn: Scenario) -> tuple[Scenario, InitialState]:
 
 
 def measured_grid(run: Run, times: Mapping[str, np.ndarray], initial: InitialState, scn: Scenario) -> Grid:
-    """The model evaluation grid: each residual channel's measured sample times."""
+    """The model evaluation grid: each residual channel's measured sample times (the encoder's counting period: the
+    median interval of its reported samples, ``times["enc_wl"]``, held repeats left out)."""
     period = 1.0 / scn.platform.sensors.encoder.rate_hz
-    if run.has("enc_wl"):
-        te, _ = run.samples("enc_wl")
-        if te.size > 2:
-            period = float(np.median(np.diff(te)))
+    te = times["enc_wl"] if "enc_wl" in times else (run.samples("enc_wl")[0] if run.has("enc_wl") else None)
+    if te is not None and te.size > 2:
+        period = float(np.median(np.diff(te)))
     return Grid(dict(times), period, initial)
 
 
@@ -262,7 +262,8 @@ def testbed_trace(scn: Scenario, overrides: Mapping[str, Any]) -> dict[str, np.n
 
 def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0,
                  enc_scale: tuple[float, float] = (0.0, 0.0), gyro_bias: float = 0.0,
-                 x_offset: tuple[float, float] | None = None, enc_latency: float = 0.0) -> dict[str, np.ndarray]:
+                 x_offset: tuple[float, float] | None = None, enc_latency: float = 0.0, gyro_scale: float = 1.0,
+                 imu_mount: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> dict[str, np.ndarray]:
     """Model channels at the measured sample times from a physics-rate trace.
 
     ``shift`` delays every signal by ``shift`` s (the signal at t is the trace at t - shift,
@@ -272,9 +273,11 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
     the encoder reports late, the angles counted are those at ``enc_latency`` before the sample times
     (:func:`bench.sim.sensors.encoder_angles`, as the testbed's encoders; before the trace the wheel turns at
     its initial speed: the trace's ``w_init`` (the testbed's start), else its first step's mean).
-    Drive signals: the value of the physics step in force, as the testbed logs them.
+    Drive signals: the value of the physics step in force, as the testbed logs them.  Gyro: ``gyro_scale`` x the
+    yaw rate + ``gyro_bias``; accelerometer mounted at ``imu_mount`` = (yaw misalignment, lever x, lever y)
+    (:func:`bench.sim.sensors.imu_mounting`, the testbed's own rule; the yaw acceleration from the trace's yaw rate).
     """
-    from bench.sim.sensors import encoder_angles  # the testbed's own rule (bench.sim loads pybullet: lazily)
+    from bench.sim.sensors import encoder_angles, imu_mounting  # the testbed's rules (bench.sim loads pybullet: lazily)
 
     t_phys = trace["t"]
     out: dict[str, np.ndarray] = {}
@@ -297,11 +300,14 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
             idx = np.clip(np.searchsorted(t_phys, tt - shift, side="right") - 1, 0, t_phys.size - 1)
             out[c] = trace[c][idx]
         elif c == "imu_gz":
-            out[c] = at("wz", tt) + gyro_bias
-        elif c == "imu_ax":
-            out[c] = at("fx_b", tt)
-        elif c == "imu_ay":
-            out[c] = at("fy_b", tt)
+            out[c] = gyro_scale * at("wz", tt) + gyro_bias
+        elif c in ("imu_ax", "imu_ay"):
+            fx, fy = at("fx_b", tt), at("fy_b", tt)
+            if any(imu_mount):
+                alpha = (np.interp(tt - shift, t_phys, np.gradient(trace["wz"], t_phys)) if t_phys.size > 1
+                         else np.zeros(tt.size))
+                fx, fy = imu_mounting(fx, fy, at("wz", tt), alpha, *imu_mount)
+            out[c] = fx if c == "imu_ax" else fy
         elif c in ("body_vx", "body_vy"):
             vx, vy, yaw = at("vcom_x", tt), at("vcom_y", tt), at("yaw", tt)
             cy, sy = np.cos(yaw), np.sin(yaw)

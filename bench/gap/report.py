@@ -143,8 +143,8 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
                  f"{100 * cc.get('regime_share', 0):.0f}% of the excess (worst channel there: {cc.get('regime_channel', '-')})"
                  + (f"; 2 s window {win[0]:.1f}-{win[1]:.1f} s holds {100 * cc['window_share']:.0f}%" if win else ""))
     L.append("")
-    L.append("Excess cost per sample over the local channels (pose residuals accumulate, so they are left "
-             "out of the where-analysis):")
+    L.append("Excess cost per sample over every channel's local term (the pose residuals accumulate, so they take "
+             "part by the growth of their error between consecutive samples: bench.gap.residuals.local_terms):")
     L.append("")
     L.append("| regime | time share | excess cost before | excess cost after |")
     L.append("|---|---|---|---|")

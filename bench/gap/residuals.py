@@ -39,7 +39,10 @@ once.
 Sensors that did not report: a reference pose logged at a higher rate than the sensor's (held
 between reports, as the DRIVE Husky table does) repeats the previous pose exactly; those rows are
 not samples and are left out (:func:`reported_rows`), so noise scales, the pose alignment and
-sample counts see only the poses the sensor reported.
+sample counts see only the poses the sensor reported.  Float (not quantised) wheel speeds held by the
+logger are left out the same way (:func:`held_encoder_rows`; the Husky's 10 Hz wheel speeds in its 20 Hz
+rows); the model's wheel speed at a reported sample is then the mean since the previous reported one, the
+sensor's own period.
 
 The cost of a model is ``J = sum_c w_c mean_k (r_ck / sigma_c)^2``: about
 ``J_noise = sum_c w_c (sigma_hat_c / sigma_c)^2`` when the model is right and only sensor noise
@@ -117,11 +120,33 @@ def reported_rows(run: Run, names: tuple[str, ...]) -> np.ndarray:
     return keep
 
 
+def held_encoder_rows(run: Run) -> np.ndarray:
+    """Row mask of wheel-speed samples that only hold the previous report: both encoder channels exactly
+    equal to the previous finite row, not both zero, in a run whose encoder speeds are not quantised
+    (:func:`quantisation_step`).  A noisy float wheel speed repeats exactly only when the logger wrote the
+    last value again (the DRIVE Husky table: 20 Hz rows, the wheels report at 10 Hz, every other row a
+    repeat); a quantised count difference repeats whenever the count per period does, and a wheel at rest
+    reads 0 sample after sample: those are samples."""
+    names = [n for n in DIFFERENCED_CHANNELS if n in run.data.columns and run.has(n)]
+    held = np.zeros(run.t.size, bool)
+    if not names:
+        return held
+    vals = np.column_stack([run[n] for n in names])
+    idx = np.flatnonzero(np.isfinite(vals).all(axis=1))
+    if idx.size < 2 or any(quantisation_step(vals[idx, j]) > 0 for j in range(len(names))):
+        return held
+    v = vals[idx]
+    held[idx[1:]] = np.all(v[1:] == v[:-1], axis=1) & np.any(v[1:] != 0.0, axis=1)
+    return held
+
+
 def measured_channels(run: Run) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """(t, value) of every residual channel the measured run has (finite samples only; pose rows
-    where the reference sensor did not report are left out, :func:`reported_rows`)."""
+    where the reference sensor did not report, :func:`reported_rows`, and wheel speeds held by the logger,
+    :func:`held_encoder_rows`, are left out)."""
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     pose_rows = reported_rows(run, POSE_CHANNELS)
+    held_enc = held_encoder_rows(run)
     for c in CHANNELS:
         if c.startswith("body_"):
             continue
@@ -129,6 +154,9 @@ def measured_channels(run: Run) -> dict[str, tuple[np.ndarray, np.ndarray]]:
             t, v = run.samples(c)
             if c in POSE_CHANNELS:
                 m = pose_rows & np.isfinite(run[c])
+                t, v = run.t[m], run[c][m]
+            elif c in DIFFERENCED_CHANNELS and held_enc.any():
+                m = ~held_enc & np.isfinite(run[c])
                 t, v = run.t[m], run[c][m]
             out[c] = (t, v)
     hdg = _heading(run)
@@ -387,13 +415,42 @@ def gap_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[str
     return out
 
 
+def local_terms(space: ResidualSpace, raw: Mapping[str, np.ndarray]
+                ) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray, float]]:
+    """Per channel the terms the "where" analysis sums: ``(t, regime index, z2, noise2)``.
+
+    A local channel's term is its squared normalised residual ``(r / sigma)^2`` at each sample, with
+    the sensor noise's expectation ``noise2 = (sigma_hat / sigma)^2``.  A pose channel's residual is
+    cumulative (an error made at one time stays in every later sample), so its term is the growth of
+    the error between consecutive samples: ``(r_k - r_(k-1))^2 / (2 sigma^2)`` at sample ``k`` (angles
+    wrapped), whose noise expectation is the same ``noise2`` (the difference of two independent noise
+    samples has twice their variance).  The pose channels then point at the samples where the pose
+    error is made, as the local channels do, and a drift that the local channels miss (the reference
+    yaw of a turn the model takes too fast) shows where it happens."""
+    out = {}
+    for c in space.channels:
+        r = np.asarray(raw[c], float)
+        t, reg = np.asarray(space.t[c]), np.asarray(space.regime[c])
+        if c in CUMULATIVE_CHANNELS:
+            d = np.diff(r)
+            if c in ANGLE_CHANNELS:
+                d = np.angle(np.exp(1j * d))
+            z2, t, reg = d**2 / (2.0 * space.sigma[c] ** 2), t[1:], reg[1:]
+        else:
+            z2 = (r / space.sigma[c]) ** 2
+        out[c] = (t, reg, z2, float((space.sigma_hat[c] / space.sigma[c]) ** 2))
+    return out
+
+
 def regime_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[str, dict]:
-    """Per regime: share of time, weighted mean excess cost over the local (non-cumulative)
-    channels, and normalised RMS per channel (all channels)."""
+    """Per regime: share of time, weighted mean excess cost over every channel's local term
+    (:func:`local_terms`: the pose channels by the growth of their error), the normalised RMS of each
+    channel's residual and the RMS of its local term (``local_rms``; equal for local channels)."""
     r = space.raw(model)
+    terms = local_terms(space, r)
     out: dict[str, dict] = {}
     for i, name in enumerate(space.regime_names):
-        per = {}
+        per, local = {}, {}
         cost = 0.0
         present = False
         for c in space.channels:
@@ -401,34 +458,32 @@ def regime_table(space: ResidualSpace, model: Mapping[str, np.ndarray]) -> dict[
             if not m.any():
                 continue
             present = True
-            z2 = np.nanmean((r[c][m] / space.sigma[c]) ** 2)
-            per[c] = float(np.sqrt(z2))
-            if c in CUMULATIVE_CHANNELS:
+            per[c] = float(np.sqrt(np.nanmean((r[c][m] / space.sigma[c]) ** 2)))
+            _, reg, z2, noise2 = terms[c]
+            k = (reg == i) & np.isfinite(z2)
+            if not k.any():
                 continue
-            noise2 = (space.sigma_hat[c] / space.sigma[c]) ** 2
-            cost += space.weight[c] * max(z2 - noise2, 0.0)
+            mean = float(np.mean(z2[k]))
+            local[c] = float(np.sqrt(mean))
+            cost += space.weight[c] * max(mean - noise2, 0.0)
         if present:
             share = float(np.mean(np.concatenate([space.regime[c] == i for c in space.channels])))
-            out[name] = {"time_share": share, "excess_cost": float(cost), "normalised_rms": per}
+            out[name] = {"time_share": share, "excess_cost": float(cost), "normalised_rms": per, "local_rms": local}
     return out
 
 
 def time_profile(space: ResidualSpace, model: Mapping[str, np.ndarray], bin_s: float = 0.5
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """(bin centres, weighted excess cost per time bin over the local channels): where in time
-    the disagreement sits."""
-    r = space.raw(model)
+    """(bin centres, weighted excess cost per time bin over every channel's local term
+    (:func:`local_terms`)): where in time the disagreement sits."""
+    terms = local_terms(space, space.raw(model))
     t_end = max(float(space.t[c][-1]) for c in space.channels)
     nb = max(1, int(np.ceil(t_end / bin_s + 1e-9)))
     acc = np.zeros(nb)
-    for c in space.channels:
-        if c in CUMULATIVE_CHANNELS:
-            continue
-        k = np.minimum((space.t[c] / bin_s).astype(int), nb - 1)
-        z2 = np.nan_to_num((r[c] / space.sigma[c]) ** 2)
-        noise2 = (space.sigma_hat[c] / space.sigma[c]) ** 2
-        s = np.bincount(k, weights=z2, minlength=nb)
-        n = np.bincount(k, minlength=nb)
+    for c, (t, _, z2, noise2) in terms.items():
+        k = np.minimum((t / bin_s).astype(int), nb - 1)
+        s = np.bincount(k, weights=np.nan_to_num(z2), minlength=nb)
+        n = np.bincount(k, weights=np.isfinite(z2).astype(float), minlength=nb)
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = np.where(n > 0, s / np.maximum(n, 1), 0.0)
         acc += space.weight[c] * np.maximum(mean - noise2, 0.0)
@@ -437,4 +492,4 @@ def time_profile(space: ResidualSpace, model: Mapping[str, np.ndarray], bin_s: f
 
 
 __all__ = ["CHANNELS", "UNITS", "FLOORS", "measured_channels", "noise_scale", "ResidualSpace", "build_space",
-           "gap_table", "regime_table", "time_profile", "angle_diff"]
+           "gap_table", "local_terms", "regime_table", "time_profile", "angle_diff"]

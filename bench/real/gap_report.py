@@ -34,8 +34,11 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         "its noise-free channels with the measured ones, screens and fits the effect catalogue and selects "
         "effects by cross-validated cost.\n")
     add("## Data\n")
+    how = ("each replayed on its own from its measured initial state (bench.gap.segments), "
+           f"{doc['fit_duration_s']:.2f} s in all" if doc.get("fit_separate") else
+           f"consecutive in time, one Run of {doc['fit_duration_s']:.2f} s")
     add(f"- Fit block (calibration half of the real benchmark's split, seed {doc['seed']}): steps "
-        f"{', '.join(map(str, doc['fit_steps']))}, consecutive in time, one Run of {doc['fit_duration_s']:.2f} s.")
+        f"{', '.join(map(str, doc['fit_steps']))}, {how}.")
     add(f"- Held out (test half; never seen by the fit): {len(doc['held_out_steps'])} steps "
         f"({', '.join(map(str, doc['held_out_steps']))}), each replayed on its own.")
     add(f"- Bounds of this run: {doc['bounds_text']}.")
@@ -98,7 +101,8 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
     add("### Where the held-out residual sits\n")
     add("Regimes from measured signals only (bench.gap.regimes; `climbing` = pitch from the accelerometer, "
-        "a_x - dv/dt, above 2 deg).\n")
+        "a_x - dv/dt, above 2 deg).  Every channel takes part, the pose channels (cumulative) by the growth of "
+        "their error between consecutive samples (bench.gap.residuals.local_terms).\n")
     add("| regime | share of samples | excess cost before | excess cost after | worst local channel after |")
     add("|---|---:|---:|---:|---|")
     for name, r in ho["regimes"].items():
@@ -111,7 +115,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         ch = r["worst_channel_after"]
         add(f"Largest held-out residual (excess cost per sample, regimes with >= {100 * MIN_REGIME_SHARE:.0f} % of the "
             f"samples): **{wr}** ({_g(r['excess_after'])} after vs {_g(r['excess_before'])} before), worst channel "
-            f"{ch} (normalised RMS {_g(r['normalised_rms_after'].get(ch))}).\n")
+            f"{ch} (local RMS {_g(r['local_rms_after'].get(ch))}).\n")
     add("## Reading\n")
     L.extend(_reading(doc))
     add("")

@@ -13,7 +13,7 @@ from bench.gap.catalogue import ModelConfig, get, nominal_config
 from bench.gap.fit import Evaluator
 from bench.gap.model import measured_grid, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
-from bench.gap.residuals import CHANNELS, CUMULATIVE_CHANNELS, UNITS, build_space
+from bench.gap.residuals import CHANNELS, UNITS, build_space, local_terms
 from bench.run import Run
 
 MIN_REGIME_SHARE = 0.05  # a regime must hold this share of the held-out samples to be "where"
@@ -63,8 +63,9 @@ def wheel_series(run: Run, scenario: Any, res: GapResult) -> dict[str, dict[str,
 
 def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str]) -> dict[str, Any]:
     """Pool per-step residuals: per channel RMS [SI] and normalised RMS before/after; per regime the
-    share of samples and the excess cost over the local channels (as bench.gap.residuals.regime_table,
-    pooled over steps: sum_c w_c max(mean (r/sigma)^2 - (sigma_hat/sigma)^2, 0))."""
+    share of samples and the excess cost over every channel's local term (as bench.gap.residuals.regime_table,
+    pooled over steps: sum_c w_c max(mean z2 - (sigma_hat/sigma)^2, 0), z2 of bench.gap.residuals.local_terms:
+    the pose channels by the growth of their error between samples)."""
     chans = [c for c in CHANNELS if any(c in s["space"].channels for s in steps)]
     per: dict[str, dict[str, float]] = {}
     for c in chans:
@@ -87,33 +88,39 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
         per[c] = row
     regimes: dict[str, dict[str, Any]] = {}
     total = sum(int(np.isfinite(s["raw"]["before"][c]).sum()) for s in steps for c in s["space"].channels)
+    terms = [{key: local_terms(s["space"], s["raw"][key]) for key in ("before", "after")} for s in steps]
     for i, name in enumerate(regime_names):
         entry: dict[str, Any] = {"n": 0}
         for key in ("before", "after"):
-            excess, nrms, count = 0.0, {}, 0
+            excess, nrms, local, count = 0.0, {}, {}, 0
             for c in chans:
-                acc, n, noise = 0.0, 0, 0.0
-                for s in steps:
+                acc, n, lacc, ln, noise = 0.0, 0, 0.0, 0, 0.0
+                for s, tm in zip(steps, terms):
                     sp = s["space"]
                     if c not in sp.channels:
                         continue
                     m = (sp.regime[c] == i) & np.isfinite(s["raw"][key][c])
-                    z2 = (s["raw"][key][c][m] / sp.sigma[c]) ** 2
-                    acc += float(z2.sum())
-                    noise += float(m.sum()) * (sp.sigma_hat[c] / sp.sigma[c]) ** 2
+                    acc += float(np.sum((s["raw"][key][c][m] / sp.sigma[c]) ** 2))
                     n += int(m.sum())
+                    _, reg, z2, noise2 = tm[key][c]
+                    k = (reg == i) & np.isfinite(z2)
+                    lacc += float(z2[k].sum())
+                    ln += int(k.sum())
+                    noise += float(k.sum()) * noise2
                 if n == 0:
                     continue
                 count += n
                 nrms[c] = math.sqrt(acc / n)
-                if c not in CUMULATIVE_CHANNELS:
-                    excess += CHANNELS[c][1] * max(acc / n - noise / n, 0.0)
+                if ln:
+                    local[c] = math.sqrt(lacc / ln)
+                    excess += CHANNELS[c][1] * max(lacc / ln - noise / ln, 0.0)
             entry[f"excess_{key}"] = excess
             entry[f"normalised_rms_{key}"] = nrms
+            entry[f"local_rms_{key}"] = local
             entry["n"] = count
         if entry["n"]:
             entry["share"] = entry["n"] / total if total else 0.0
-            local = {c: v for c, v in entry["normalised_rms_after"].items() if c not in CUMULATIVE_CHANNELS}
+            local = entry["local_rms_after"]
             entry["worst_channel_after"] = max(local, key=local.get) if local else ""
             regimes[name] = entry
     pool = {k: v for k, v in regimes.items() if v["share"] >= MIN_REGIME_SHARE} or regimes

@@ -8,7 +8,8 @@ order sensors are evaluated in, serial or parallel.
   (Wang 2015: 8192 counts/rev).  Optional scale error and latency (gap catalogue): with latency L the sample
   at t counts the wheel angles at t - L - 1/rate and t - L (:func:`encoder_angles`).
 * IMU at the centre of mass: specific force ``R^T (a - g)`` and body rates, white noise plus a
-  bias random walk, saturation (Yi 2009: 125 Hz).
+  bias random walk, saturation (Yi 2009: 125 Hz).  Optional mounting (gap catalogue): lever arm from the CoM,
+  yaw misalignment of the axes, gyro z gain (:func:`imu_mounting`).
 * GNSS (antenna at the CoM): position, velocity, dual-antenna heading; white noise, a decaying
   initial drift and a random walk (Liu 2020 describes the initial drift), random dropouts and
   scheduled outages (NaN).
@@ -68,10 +69,37 @@ def encoders(t: np.ndarray, theta_l: np.ndarray, theta_r: np.ndarray, scn: Scena
     return out[0], out[1]
 
 
-def imu(t: np.ndarray, f_body: np.ndarray, w_body: np.ndarray, scn: Scenario, rng: np.random.Generator
-        ) -> tuple[np.ndarray, np.ndarray]:
-    """(accel (n,3), gyro (n,3)) with white noise, bias random walk and saturation."""
+def imu_mounting(fx: np.ndarray, fy: np.ndarray, wz: np.ndarray, alpha_z: np.ndarray, yaw_misalignment: float,
+                 lever_x: float, lever_y: float) -> tuple[np.ndarray, np.ndarray]:
+    """Planar specific force ``(fx, fy)`` [m/s^2] an accelerometer reads when mounted at ``(lever_x, lever_y)`` [m]
+    from the centre of mass (body axes) with its axes turned by ``yaw_misalignment`` [rad] about z, from the CoM's
+    body-frame specific force ``(fx, fy)``, yaw rate ``wz`` and yaw acceleration ``alpha_z``.
+
+    Rigid body, rotation about z only: a_P = a_CoM + alpha x r + w x (w x r), i.e. x: -wz^2 lx - alpha ly,
+    y: -wz^2 ly + alpha lx; then the sensor's axes: f_s = R(psi)^T f_b.  Roll and pitch rates are neglected
+    (planar driving).  Identity, bit for bit, at zero lever and misalignment."""
+    if lever_x or lever_y:
+        w2 = wz * wz
+        fx, fy = fx - w2 * lever_x - alpha_z * lever_y, fy - w2 * lever_y + alpha_z * lever_x
+    if yaw_misalignment:
+        c, s = math.cos(yaw_misalignment), math.sin(yaw_misalignment)
+        fx, fy = c * fx + s * fy, -s * fx + c * fy
+    return fx, fy
+
+
+def imu(t: np.ndarray, f_body: np.ndarray, w_body: np.ndarray, scn: Scenario, rng: np.random.Generator,
+        alpha_z: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(accel (n,3), gyro (n,3)) with white noise, bias random walk and saturation; mounted as the spec says
+    (:func:`imu_mounting`, gyro z gain ``gyro_scale_z``; ``alpha_z``, the yaw acceleration at ``t``, is needed
+    only for a lever arm)."""
     spec = scn.platform.sensors.imu
+    if spec.lever_x or spec.lever_y or spec.yaw_misalignment:
+        fx, fy = imu_mounting(f_body[:, 0], f_body[:, 1], w_body[:, 2],
+                              alpha_z if alpha_z is not None else np.zeros(t.size),
+                              spec.yaw_misalignment, spec.lever_x, spec.lever_y)
+        f_body = np.column_stack([fx, fy, f_body[:, 2]])
+    if spec.gyro_scale_z != 1.0:
+        w_body = np.column_stack([w_body[:, 0], w_body[:, 1], spec.gyro_scale_z * w_body[:, 2]])
     n = t.size
     dt = 1.0 / spec.rate_hz
     acc_bias = np.cumsum(rng.normal(0.0, spec.accel_bias_walk * math.sqrt(dt), (n, 3)), axis=0)
