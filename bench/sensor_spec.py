@@ -51,7 +51,7 @@ class ImuSpec:
         "saturation_accel": (positive, "> 0"),
         "saturation_gyro": (positive, "> 0"),
         "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
-        "gyro_scale_z": (lambda x: 0.1 <= abs(x) <= 2, "0.1 <= |x| <= 2"),
+        "gyro_scale_z": (lambda x: abs(x) <= 2, "|x| <= 2"),
         "yaw_misalignment": (lambda x: abs(x) <= math.pi, "|x| <= pi rad"),
         "lever_x": (lambda x: abs(x) <= 2, "|x| <= 2 m"),
         "lever_y": (lambda x: abs(x) <= 2, "|x| <= 2 m"),

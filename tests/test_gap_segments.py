@@ -40,6 +40,56 @@ def test_a_run_fitted_twice_over_costs_what_it_costs_alone(sim):
     assert np.all(sp.row_block()[: sp.parts[0].meas[sp.channels[0]].size] < sp.offsets[1] / sp.block)
 
 
+def test_two_different_runs_cost_the_pooled_sum_of_their_own_residuals(sim):
+    """Two runs of one robot with other commands, seeds and starting headings (the second starts turned by 1 rad):
+    the concatenated cost is sum_c w_c sum_k sum_i (r_kci / sigma_c)^2 / N_c, with each run's residual r_k from its
+    own space (its pose aligned on its own start) and sigma_c the RMS of the runs' noise scales weighted by their
+    sample counts; J_noise is the same pooling of the runs' own.  (Aligned on the joined axis instead, the second
+    run's pose would be turned by the first's correction: a different cost.)"""
+    scn = load_scenario("gap_dev_janosi")
+    runs = [sim("gap_dev_janosi", 146).without_truth(), sim("gap_blind_turns", 147, initial_yaw=1.0).without_truth()]
+    ev = segment_evaluator(runs, scn, workers=1)
+    cfg = nominal_config(ev.scn)
+    parts = [p.space for p in ev.parts]
+    raws = [sp.raw(p.signals(cfg)) for sp, p in zip(parts, ev.parts)]
+    expect, j_noise = 0.0, 0.0
+    for c in ev.space.channels:
+        n = np.array([sp.meas[c].size for sp in parts], float)
+        sig = np.sqrt(np.sum(n * np.array([sp.sigma[c] for sp in parts]) ** 2) / n.sum())
+        sig_hat = np.sqrt(np.sum(n * np.array([sp.sigma_hat[c] for sp in parts]) ** 2) / n.sum())
+        z2 = sum(float(np.sum(np.nan_to_num(r[c] / sig) ** 2)) for r in raws)
+        expect += parts[0].weight[c] * z2 / n.sum()
+        j_noise += parts[0].weight[c] * (sig_hat / sig) ** 2
+    assert ev.cost(cfg) == pytest.approx(expect, rel=1e-9)
+    assert ev.space.j_noise == pytest.approx(j_noise, rel=1e-12)
+
+
+def test_no_pose_growth_is_counted_across_the_start_of_a_run():
+    """Run 1's heading error grows in regime "turn"; run 2 (regime "cruise") fits exactly.  Joined, the pose term
+    from run 1's end to run 2's start would be the whole accumulated error in "cruise"; it is not counted: cruise
+    has no excess, and the time profile has none in run 2."""
+    from bench.gap.residuals import ResidualSpace, local_terms, regime_table, time_profile
+    from bench.gap.segments import segment_space
+
+    t = np.arange(120) * 0.05
+    sigma = 0.003
+
+    def part(reg: int, drift: float) -> ResidualSpace:
+        return ResidualSpace(("ref_yaw",), {"ref_yaw": t}, {"ref_yaw": drift * t}, {"ref_yaw": sigma / 3},
+                             {"ref_yaw": sigma}, {"ref_yaw": 1.0}, {"ref_yaw": np.full(t.size, reg)},
+                             ("cruise", "turn"), ())
+
+    sp = segment_space([part(1, 0.2), part(0, 0.0)])
+    model = {"ref_yaw": np.zeros(2 * t.size)}
+    z2 = local_terms(sp, sp.raw(model))["ref_yaw"][2]
+    assert np.isnan(z2[t.size - 1]) and np.isfinite(z2[: t.size - 1]).all() and np.isfinite(z2[t.size:]).all()
+    tab = regime_table(sp, model)
+    assert tab["cruise"]["excess_cost"] == 0.0
+    assert tab["turn"]["excess_cost"] == pytest.approx((0.2 * 0.05) ** 2 / (2 * sigma**2) - 1 / 9, rel=1e-9)
+    centres, prof = time_profile(sp, model, bin_s=0.5)
+    assert np.all(prof[centres > sp.offsets[1]] == 0.0)
+
+
 def test_a_hidden_effect_is_named_and_fitted_from_two_runs(sim):
     """Right tires 5 % small (radius scale 0.95) in two runs of other seeds: named first, fitted within 20 % of the
     change, and two clean runs name nothing."""

@@ -307,7 +307,7 @@ def test_real_gap_runs_on_another_robot_from_its_platform_toml(clean, tmp_path, 
 
 
 def test_real_gap_fits_several_calibration_steps_each_on_its_own(clean, tmp_path, capsys):
-    """--fit-steps 3: the first three calibration-half steps (table order), each replayed from its own initial state
+    """--fit-steps 2: the first two calibration-half steps (table order), each replayed from its own initial state
     (bench.gap.segments), none of them held out; the report says how the fit saw them."""
     from bench.real.benchmark import split_steps
     from bench.real.drive import import_drive_windows
@@ -315,12 +315,12 @@ def test_real_gap_fits_several_calibration_steps_each_on_its_own(clean, tmp_path
 
     out = tmp_path / "gap"
     assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
-                 "--json", str(tmp_path / "g.json"), "--workers", "1", "--fit-steps", "3", "--max-effects", "1"]) == 0
+                 "--json", str(tmp_path / "g.json"), "--workers", "1", "--fit-steps", "2", "--max-effects", "1"]) == 0
     doc = json.loads((tmp_path / "g.json").read_text())
     allw = import_drive_windows(clean[0])
     w = allw.subset(valid_windows(allw))
     calib, test = split_steps(w, 0)
-    firsts = [int(s) for s in dict.fromkeys(w.calib_step.tolist()) if int(s) in set(int(c) for c in calib)][:3]
+    firsts = [int(s) for s in dict.fromkeys(w.calib_step.tolist()) if int(s) in set(int(c) for c in calib)][:2]
     assert doc["fit_separate"] is True and doc["fit_steps"] == firsts
     assert not set(doc["fit_steps"]) & set(doc["held_out_steps"])
     assert doc["bounds"]["max_effects"] == 1 and len(doc["workflow"]["candidates"]) <= 1

@@ -42,7 +42,8 @@ def gap_run(slice30: Path, tmp_path_factory: pytest.TempPathFactory) -> dict:
     return res
 
 
-def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0) -> dict[str, np.ndarray]:
+def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0, gyro_scale=1.0,
+                   latency=0.0) -> dict[str, np.ndarray]:
     """measured - model for imu_gz and the encoders: the model's yaw rate interpolated at the gyro's
     sample times (+ bias); its wheel angle differenced over each encoder sample interval (the wheel speeds the
     DRIVE logger wrote again between the 10 Hz reports left out)."""
@@ -52,7 +53,7 @@ def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0) -> 
     t = run.t
     g = run["imu_gz"]
     ok = np.isfinite(g)
-    out["imu_gz"] = g[ok] - (np.interp(t[ok], tr["t"], tr["wz"]) + gyro_bias)
+    out["imu_gz"] = g[ok] - (gyro_scale * np.interp(t[ok], tr["t"], tr["wz"]) + gyro_bias)
     wl, wr = run["enc_wl"], run["enc_wr"]  # a pair equal to the previous one (not at rest) is the logger's repeat
     held = np.r_[False, (wl[1:] == wl[:-1]) & (wr[1:] == wr[:-1]) & ((wl[1:] != 0) | (wr[1:] != 0))]
     period = float(np.median(np.diff(t[np.isfinite(wl) & ~held])))
@@ -60,7 +61,9 @@ def _own_residuals(run, scn, overrides, enc_scale=(0.0, 0.0), gyro_bias=0.0) -> 
         v = run[c]
         ok = np.isfinite(v) & ~held
         tt = t[ok]
-        ang = np.interp(tt, tr["t"], tr[th])
+        w0 = tr["w_init"][0 if c == "enc_wl" else 1]  # the wheel's start speed before the trace (a latency)
+        tq = tt - latency
+        ang = np.where(tq < tr["t"][0], tr[th][0] + w0 * (tq - tr["t"][0]), np.interp(tq, tr["t"], tr[th]))
         prev_t = np.r_[tt[0] - period, tt[:-1]]
         prev_a = np.r_[ang[0], ang[:-1]]
         out[c] = v[ok] - (ang - prev_a) / (tt - prev_t) * (1.0 + e)
@@ -117,18 +120,22 @@ def test_held_out_residuals_recomputed(gap_run: dict, slice30: Path) -> None:
     runs = {r.meta["calib_step"]: r for r in import_drive(slice30, "husky")}
     scn = load_scenario(SCENARIO)
     kept = wf["effects"] + wf["partial_candidates"]
-    over, enc, bias = {}, [0.0, 0.0], 0.0
+    over, enc, bias, gain, lat = {}, [0.0, 0.0], 0.0, 1.0, 0.0
     for e in kept:
         if e["name"] == "encoder_scale":
             enc = [e["parameters"]["scale_error_l"], e["parameters"]["scale_error_r"]]
         elif e["name"] == "gyro_bias":
             bias = e["parameters"]["gyro_bias_z"]
-        else:
+        elif e["name"] == "gyro_scale":
+            gain = e["parameters"]["gyro_scale_z"]
+        elif e["name"] == "encoder_latency":
+            lat = e["parameters"]["latency"]
+        elif e["name"] != "imu_mounting":  # the accelerometer only: not among the channels recomputed here
             over.update(e["overrides"])
     pooled = {k: {c: [] for c in ("imu_gz", "enc_wl", "enc_wr")} for k in ("before", "after")}
     for s in doc["held_out_steps"]:
         run = runs[s]
-        for key, args in (("before", ({}, (0.0, 0.0), 0.0)), ("after", (over, tuple(enc), bias))):
+        for key, args in (("before", ({}, (0.0, 0.0), 0.0)), ("after", (over, tuple(enc), bias, gain, lat))):
             for c, r in _own_residuals(run, scn, *args).items():
                 pooled[key][c].append(r)
     ch = doc["held_out"]["channels"]

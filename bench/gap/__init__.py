@@ -174,7 +174,8 @@ def find_gap(measured: Run | Sequence[Run], scenario: str | Path | Scenario, mod
     t_start = time.perf_counter()
     if not isinstance(measured, Run):  # several runs: one model fitted to all (bench.gap.segments)
         return _find_gap_segments(list(measured), scenario, model, overrides=overrides, catalogue=catalogue,
-                                  thresholds=thresholds, workers=workers, progress=progress, t_start=t_start)
+                                  thresholds=thresholds, workers=workers, channels=channels, progress=progress,
+                                  t_start=t_start)
     run = measured.without_truth()
     run.validate()
     scn0 = _resolve_scenario(scenario, overrides)
@@ -207,7 +208,8 @@ def find_gap(measured: Run | Sequence[Run], scenario: str | Path | Scenario, mod
 
 def _find_gap_segments(runs: list[Run], scenario: str | Path | Scenario, model: str, *,
                        overrides: Mapping[str, Any] | None, catalogue: Sequence[Effect], thresholds: Thresholds,
-                       workers: int | None, progress: Callable[[str], None] | None, t_start: float) -> GapResult:
+                       workers: int | None, channels: Sequence[str] | None,
+                       progress: Callable[[str], None] | None, t_start: float) -> GapResult:
     from bench.gap.segments import segment_evaluator
 
     if model != "testbed":
@@ -215,7 +217,7 @@ def _find_gap_segments(runs: list[Run], scenario: str | Path | Scenario, model: 
     if not runs:
         raise ValueError("no measured run")
     scn0 = _resolve_scenario(scenario, overrides)
-    ev = segment_evaluator(runs, scn0, workers if workers is not None else min(2, os.cpu_count() or 1))
+    ev = segment_evaluator(runs, scn0, workers if workers is not None else min(2, os.cpu_count() or 1), channels)
     sel = run_selection(ev, catalogue, thresholds, physics_model=True, progress=progress)
     return _assemble("+".join(r.id for r in runs), scn0, model, ev, sel, time.perf_counter() - t_start)
 

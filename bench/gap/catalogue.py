@@ -417,7 +417,7 @@ CATALOGUE: tuple[Effect, ...] = (
         "gyro_scale", "gyro scale or sign (IMU mounting)",
         "Gain of the gyro's z rate: the yaw rate it reports is gain x the body's (-1: the IMU mounted upside "
         "down or its z axis flipped in the driver; |gain| != 1: a scale error).",
-        (Param("gyro_scale_z", "-", -1.5, 1.5, 0.01),),
+        (Param("gyro_scale_z", "-", -2.0, 2.0, 0.01),),  # the spec's range (ImuSpec: |gain| <= 2; 0: a dead gyro)
         ("imu_gz",),
         "measured yaw rate proportional to the model's, of the opposite sign for a flipped mount, in every "
         "turn; zero on straight lines; pose and wheels agree", "sensor",
@@ -428,14 +428,16 @@ CATALOGUE: tuple[Effect, ...] = (
         "The accelerometer's axes turned by yaw_misalignment [rad] about z from the body's, and the sensor "
         "at (lever_x, lever_y) [m] from the centre of mass: it reads the CoM's specific force plus the "
         "centripetal -w^2 r and tangential alpha x r terms of its lever arm (bench.sim.sensors.imu_mounting).",
-        (Param("yaw_misalignment", "rad", -0.6, 0.6, 0.02), Param("lever_x", "m", -1.0, 1.0, 0.02),
+        (Param("yaw_misalignment", "rad", -math.pi, math.pi, 0.02), Param("lever_x", "m", -1.0, 1.0, 0.02),
          Param("lever_y", "m", -1.0, 1.0, 0.02)),
         ("imu_ax", "imu_ay"),
         "part of the forward acceleration in a_y (and of the lateral in a_x) on every manoeuvre for turned axes; "
         "an extra -w^2 r in turns and alpha r when a turn starts or ends for a lever arm; gyro, pose and "
         "wheels agree", "sensor",
         lambda s: (s.platform.sensors.imu.yaw_misalignment, s.platform.sensors.imu.lever_x,
-                   s.platform.sensors.imu.lever_y), _mount_apply, _mount_spec),
+                   s.platform.sensors.imu.lever_y), _mount_apply, _mount_spec,
+        probe_grid=((math.pi / 2, 0.0, 0.0), (-math.pi / 2, 0.0, 0.0), (math.pi - 1e-9, 0.0, 0.0))),  # mounted sideways,
+    # backwards: a refinement from the nominal alone would not reach them
     Effect(
         "gyro_bias", "IMU gyro bias",
         "Constant bias of the gyro's z rate [rad/s].",

@@ -226,12 +226,12 @@ def replay_scenario(run: Run, scn: Scenario) -> tuple[Scenario, InitialState]:
 
 
 def measured_grid(run: Run, times: Mapping[str, np.ndarray], initial: InitialState, scn: Scenario) -> Grid:
-    """The model evaluation grid: each residual channel's measured sample times (the encoder's counting period: the
-    median interval of its reported samples, ``times["enc_wl"]``, held repeats left out)."""
+    """The model evaluation grid: each residual channel's measured sample times."""
     period = 1.0 / scn.platform.sensors.encoder.rate_hz
-    te = times["enc_wl"] if "enc_wl" in times else (run.samples("enc_wl")[0] if run.has("enc_wl") else None)
-    if te is not None and te.size > 2:
-        period = float(np.median(np.diff(te)))
+    if run.has("enc_wl"):
+        te, _ = run.samples("enc_wl")
+        if te.size > 2:
+            period = float(np.median(np.diff(te)))
     return Grid(dict(times), period, initial)
 
 

@@ -85,6 +85,7 @@ FLOORS = {  # resolution floors of the noise scale (SI)
 ANGLE_CHANNELS = ("ref_yaw",)
 POSE_CHANNELS = ("ref_x", "ref_y", "ref_yaw")
 DIFFERENCED_CHANNELS = ("enc_wl", "enc_wr")  # a sample is a difference of two quantised counts
+HELD_SHARE = 0.4  # share of repeated wheel-speed rows from which repeats are a logger's (held_encoder_rows)
 ALIGN_WINDOW = 1.0  # s at the start of the run on which the initial-pose correction is estimated
 ALIGN_MIN_SAMPLES = 20  # ... extended until it holds this many pose samples (a 5 Hz DGPS: 4 s)
 ALIGN_RESOLUTION = 0.5  # rotation fitted only if its error moves the pose by <= this x sigma over the run
@@ -122,21 +123,29 @@ def reported_rows(run: Run, names: tuple[str, ...]) -> np.ndarray:
 
 def held_encoder_rows(run: Run) -> np.ndarray:
     """Row mask of wheel-speed samples that only hold the previous report: both encoder channels exactly
-    equal to the previous finite row, not both zero, in a run whose encoder speeds are not quantised
-    (:func:`quantisation_step`).  A noisy float wheel speed repeats exactly only when the logger wrote the
-    last value again (the DRIVE Husky table: 20 Hz rows, the wheels report at 10 Hz, every other row a
-    repeat); a quantised count difference repeats whenever the count per period does, and a wheel at rest
-    reads 0 sample after sample: those are samples."""
+    equal to the previous finite row, not both zero, in a run where at least ``HELD_SHARE`` of the rows
+    repeat so (a logger faster than the sensor: the DRIVE Husky table's 20 Hz rows hold its 10 Hz wheel
+    speeds, every other row a repeat) and whose speeds are not quantised (speed x sample interval, the count
+    difference, off any lattice: :func:`quantisation_step`).  A noisy float wheel speed repeats exactly only
+    when the logger wrote the last value again; a quantised count difference repeats whenever the count per
+    period does, and a wheel at rest reads 0 sample after sample: those are samples."""
     names = [n for n in DIFFERENCED_CHANNELS if n in run.data.columns and run.has(n)]
     held = np.zeros(run.t.size, bool)
     if not names:
         return held
     vals = np.column_stack([run[n] for n in names])
     idx = np.flatnonzero(np.isfinite(vals).all(axis=1))
-    if idx.size < 2 or any(quantisation_step(vals[idx, j]) > 0 for j in range(len(names))):
+    if idx.size < 3:
         return held
     v = vals[idx]
-    held[idx[1:]] = np.all(v[1:] == v[:-1], axis=1) & np.any(v[1:] != 0.0, axis=1)
+    rep = np.all(v[1:] == v[:-1], axis=1) & np.any(v[1:] != 0.0, axis=1)
+    if rep.mean() < HELD_SHARE:  # no logger pattern: a repeat is a sample (a quantised speed, a wheel at rest)
+        return held
+    dt = np.diff(run.t[idx])
+    counts = v[1:] * dt[:, None]  # a count difference times q: on a lattice whatever the sample interval
+    if any(quantisation_step(counts[:, j]) > 0 for j in range(len(names))):
+        return held
+    held[idx[1:]] = rep
     return held
 
 
@@ -269,6 +278,11 @@ class ResidualSpace:
         if has_yaw:
             out["ref_yaw"] = np.asarray(model["ref_yaw"], float) + dpsi
         return out
+
+    def run_starts(self, channel: str) -> tuple[int, ...]:
+        """Index of the first sample of each measured run in ``channel`` (one run: ``(0,)``;
+        :class:`bench.gap.segments.SegmentSpace` concatenates several)."""
+        return (0,)
 
     def raw(self, model: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Residual measured - model per channel (angles wrapped; pose after :meth:`align_pose`);
@@ -426,7 +440,8 @@ def local_terms(space: ResidualSpace, raw: Mapping[str, np.ndarray]
     wrapped), whose noise expectation is the same ``noise2`` (the difference of two independent noise
     samples has twice their variance).  The pose channels then point at the samples where the pose
     error is made, as the local channels do, and a drift that the local channels miss (the reference
-    yaw of a turn the model takes too fast) shows where it happens."""
+    yaw of a turn the model takes too fast) shows where it happens.  Across the start of a run
+    (:meth:`ResidualSpace.run_starts`: several runs fitted together) there is no growth term (NaN)."""
     out = {}
     for c in space.channels:
         r = np.asarray(raw[c], float)
@@ -436,6 +451,8 @@ def local_terms(space: ResidualSpace, raw: Mapping[str, np.ndarray]
             if c in ANGLE_CHANNELS:
                 d = np.angle(np.exp(1j * d))
             z2, t, reg = d**2 / (2.0 * space.sigma[c] ** 2), t[1:], reg[1:]
+            for k in space.run_starts(c)[1:]:  # no growth from one run's end to the next run's start
+                z2[k - 1] = np.nan
         else:
             z2 = (r / space.sigma[c]) ** 2
         out[c] = (t, reg, z2, float((space.sigma_hat[c] / space.sigma[c]) ** 2))

@@ -57,6 +57,11 @@ class SegmentSpace(ResidualSpace):
         return {c: np.concatenate([np.asarray(p[c], float) for p in parts]) for c in self.channels
                 if all(c in p for p in parts)}
 
+    def run_starts(self, channel: str) -> tuple[int, ...]:
+        """Index of each segment's first sample in ``channel``."""
+        sizes = [p.meas[channel].size for p in self.parts]
+        return tuple(int(k) for k in np.cumsum([0] + sizes[:-1]))
+
     def align_pose(self, model: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Each segment's pose aligned on its own start (:meth:`ResidualSpace.align_pose` of its part)."""
         aligned = [p.align_pose(m) for p, m in zip(self.parts, self.split(model))]
@@ -72,6 +77,8 @@ def segment_space(parts: Sequence[ResidualSpace]) -> SegmentSpace:
         raise ValueError("no segment to fit")
     first = parts[0]
     chans = tuple(c for c in first.channels if all(c in p.channels for p in parts))
+    if not chans:
+        return SegmentSpace((), {}, {}, {}, {}, {}, {}, first.regime_names, (), parts=tuple(parts))
     offsets, start = [], 0.0
     for p in parts:
         offsets.append(start)
@@ -102,7 +109,7 @@ class SegmentEvaluator:
     def __init__(self, parts: Sequence[Evaluator], workers: int = 1):
         self.parts = list(parts)
         for ev in self.parts:
-            ev.workers = 1  # the segments' simulations are batched here
+            ev.workers = 1  # the segments' simulations are batched here (the parts are this evaluator's own)
         self.space = segment_space([ev.space for ev in self.parts])
         self.scn = self.parts[0].scn  # effects change spec fields the segments share (platform, terrain, sensors)
         self.workers = max(1, int(workers))
@@ -153,21 +160,30 @@ class SegmentEvaluator:
         return float(z @ z)
 
 
-def segment_evaluator(runs: Sequence[Any], scenario: Any, workers: int) -> SegmentEvaluator:
+def segment_evaluator(runs: Sequence[Any], scenario: Any, workers: int,
+                      channels: Sequence[str] | None = None) -> SegmentEvaluator:
     """A :class:`SegmentEvaluator` of the measured ``runs`` (truth columns dropped) against ``scenario``'s
-    testbed model, each run replayed from its own measured initial state."""
+    testbed model, each run replayed from its own measured initial state; ``channels`` restricts the residual
+    channels.  Runs that share no residual channel are a one-line :class:`~bench.run.RunError`."""
     from bench.gap.model import measured_grid, replay_scenario, testbed_trace
     from bench.gap.regimes import regimes_for
-    from bench.gap.residuals import build_space
+    from bench.gap.residuals import CHANNELS, build_space
+    from bench.run import RunError
 
     parts = []
     for run in runs:
         run = run.without_truth()
         run.validate()
         rscn, init = replay_scenario(run, scenario)
-        space = build_space(run, regimes_for(scenario.platform))
+        space = build_space(run, regimes_for(scenario.platform), channels=tuple(channels) if channels else None)
+        if not space.channels:
+            raise RunError(run.where, "<channels>", sorted(run.data.columns), f"no residual channel of {list(CHANNELS)}")
         parts.append(Evaluator(rscn, measured_grid(run, space.t, init, scenario), space, testbed_trace, workers=1))
-    return SegmentEvaluator(parts, workers=workers)
+    out = SegmentEvaluator(parts, workers=workers)
+    if not out.space.channels:
+        raise RunError(runs[0].where, "<channels>", [list(p.space.channels) for p in parts],
+                       "the runs share no residual channel")
+    return out
 
 
 __all__ = ["SegmentSpace", "SegmentEvaluator", "segment_space", "segment_evaluator"]

@@ -264,12 +264,12 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         block = [s for s in order if s in calib_set][: config.n_fit]
         fit_runs = [block_run(w, [s], plat) for s in block]
         res = find_gap(fit_runs, scn, workers=workers, thresholds=thr, catalogue=catalogue, progress=progress)
-        fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] for r in fit_runs))
+        fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
     else:
         block = fit_block(w, calib_steps, config.n_fit)
         fit_run = block_run(w, block, plat)
         res = find_gap(fit_run, scn, workers=workers, thresholds=thr, catalogue=catalogue, progress=progress)
-        fit_duration = float(fit_run.t[-1])
+        fit_duration = float(fit_run.t[-1] - fit_run.t[0])
     steps = [step_residuals(block_run(w, [s], plat), scn, res) for s in held]
     names = steps[0]["space"].regime_names if steps else ()
     held_out = score_held_out(steps, names)

@@ -93,6 +93,8 @@ def imu(t: np.ndarray, f_body: np.ndarray, w_body: np.ndarray, scn: Scenario, rn
     (:func:`imu_mounting`, gyro z gain ``gyro_scale_z``; ``alpha_z``, the yaw acceleration at ``t``, is needed
     only for a lever arm)."""
     spec = scn.platform.sensors.imu
+    if (spec.lever_x or spec.lever_y) and alpha_z is None:
+        raise ValueError("an IMU lever arm needs the yaw acceleration alpha_z at the sample times")
     if spec.lever_x or spec.lever_y or spec.yaw_misalignment:
         fx, fy = imu_mounting(f_body[:, 0], f_body[:, 1], w_body[:, 2],
                               alpha_z if alpha_z is not None else np.zeros(t.size),
