@@ -122,6 +122,27 @@ def test_regimes_of_a_synthetic_run():
     assert at(14.0) == "braking"
 
 
+def test_a_noisy_accelerometer_on_flat_ground_is_not_climbing():
+    """White accelerometer noise of 1.2 m/s^2 per sample at 20 Hz (the real Husky's a_x): the 0.5 s mean has a noise
+    std of 1.2 / sqrt(10) = 0.38 m/s^2, more than g sin(2 deg) = 0.34, so the 2 deg test alone labels a flat, steady
+    run "climbing" on 2 Phi(-0.34 / 0.38) = 37 % of it or more (measured here: 47 %, the mean of the interpolated
+    0.02 s grid is noisier than that of 10 independent samples); with the noise floor (3 x 0.38): 0.2 %.  A 10 deg
+    climb (1.70 m/s^2) in the same noise is still found on most of its samples (here all)."""
+    plat = load_scenario(SCN).platform
+    r = plat.wheel_radius
+    rng = np.random.default_rng(5)
+    t = np.arange(0, 30.0, 0.05)
+    wl = wr = np.full(t.size, 0.5 / r)
+    climb = (t >= 20) & (t < 26)
+    ax = rng.normal(0.0, 1.2, t.size) + np.where(climb, 9.81 * math.sin(math.radians(10)), 0.0)
+    run = from_arrays({"t": t, "cmd_wl": wl, "cmd_wr": wr, "enc_wl": wl, "enc_wr": wr, "imu_ax": ax})
+    grid, lab = label_run(run, plat)
+    is_climb = lab == REGIMES.index("climbing")
+    flat = (grid > 1) & (grid < 19)
+    assert is_climb[flat].mean() < 0.02
+    assert is_climb[(grid > 20.5) & (grid < 25.5)].mean() > 0.8
+
+
 # ------------------------------------------------------------------------------------------ catalogue
 def test_catalogue_has_every_required_effect_and_maps_to_valid_spec_fields():
     assert set(REQUIRED) <= set(C.BY_NAME)

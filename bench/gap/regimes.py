@@ -3,7 +3,10 @@
 One label per instant, first match wins:
 
 * ``climbing``: |pitch| > 2 deg, pitch from the accelerometer, ``g sin(pitch) = a_x,meas - dv/dt``
-  (low-passed over 0.5 s; v from the encoders)
+  (low-passed over 0.5 s; v from the encoders), and ``g |sin(pitch)|`` above ``PITCH_NOISE_SIGMAS`` x the
+  noise of that 0.5 s mean (the accelerometer's white-noise scale, :func:`bench.gap.residuals.noise_scale`, over
+  the square root of its samples in 0.5 s): a noisy accelerometer cannot tell 2 deg from flat ground (the real
+  Husky's a_x, 1.2 m/s^2 per 20 Hz sample, labelled 45 % of its flat-ground samples "climbing")
 * ``standstill``: |v| < 0.02 m/s and |commanded yaw rate| < 0.05 rad/s
 * ``spin``: |v| < 0.02 m/s, turning on the spot
 * ``accelerating`` / ``braking``: |dv/dt| > 0.1 m/s^2, speeding up / slowing down
@@ -20,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from bench.gap.residuals import noise_scale
 from bench.run import Run
 from bench.spec import Platform
 
@@ -30,6 +34,7 @@ SMOOTH_S = 0.5
 STILL_SPEED = 0.02
 ACCEL_THRESHOLD = 0.1
 PITCH_THRESHOLD_DEG = 2.0
+PITCH_NOISE_SIGMAS = 3.0  # a pitch must stand this many noise stds of the smoothed accelerometer above 0
 KAPPA_STRAIGHT = 0.05
 KAPPA_BANDS = (1.0, 3.0)
 G = 9.81
@@ -86,8 +91,11 @@ def label_run(run: Run, platform: Platform) -> tuple[np.ndarray, np.ndarray]:
     labels = np.where(still & (np.abs(w_cmd) < 0.05) & ~moving_fast, REGIMES.index("standstill"), labels)
     if ax is not None:
         g_sin = _smooth(ax, n) - dv
-        pitch = np.degrees(np.arcsin(np.clip(g_sin / G, -1.0, 1.0)))
-        labels = np.where(np.abs(pitch) > PITCH_THRESHOLD_DEG, REGIMES.index("climbing"), labels)
+        ta, a = run.samples("imu_ax")
+        rate = (ta.size - 1) / (ta[-1] - ta[0]) if ta.size > 1 and ta[-1] > ta[0] else 1.0 / GRID_DT
+        noise = noise_scale(a) / np.sqrt(max(1.0, SMOOTH_S * rate))  # std of the 0.5 s mean of a_x
+        floor = max(G * np.sin(np.radians(PITCH_THRESHOLD_DEG)), PITCH_NOISE_SIGMAS * noise)
+        labels = np.where(np.abs(g_sin) > floor, REGIMES.index("climbing"), labels)
     return grid, labels
 
 
