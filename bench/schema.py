@@ -27,6 +27,8 @@ class SpecError(ValueError):
 
 
 PA_PER_PSI = 6894.757293168361  # 1 psi = 1 lbf/in^2 (NIST SP 811)
+
+
 def positive(x: float) -> bool:
     """A range check of the specs' ``_checks``: finite and > 0."""
     return x > 0 and math.isfinite(x)

@@ -277,7 +277,8 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
     yaw rate + ``gyro_bias``; accelerometer mounted at ``imu_mount`` = (yaw misalignment, lever x, lever y)
     (:func:`bench.sim.sensors.imu_mounting`, the testbed's own rule; the yaw acceleration from the trace's yaw rate).
     """
-    from bench.sim.sensors import encoder_angles, imu_mounting  # the testbed's rules (bench.sim loads pybullet: lazily)
+    # the testbed's own rules (imported here: bench.sim loads pybullet)
+    from bench.sim.sensors import encoder_angles, imu_mounting, yaw_acceleration
 
     t_phys = trace["t"]
     out: dict[str, np.ndarray] = {}
@@ -304,9 +305,8 @@ def sample_trace(trace: Mapping[str, np.ndarray], grid: Grid, shift: float = 0.0
         elif c in ("imu_ax", "imu_ay"):
             fx, fy = at("fx_b", tt), at("fy_b", tt)
             if any(imu_mount):
-                alpha = (np.interp(tt - shift, t_phys, np.gradient(trace["wz"], t_phys)) if t_phys.size > 1
-                         else np.zeros(tt.size))
-                fx, fy = imu_mounting(fx, fy, at("wz", tt), alpha, *imu_mount)
+                fx, fy = imu_mounting(fx, fy, at("wz", tt), yaw_acceleration(tt - shift, t_phys, trace["wz"]),
+                                      *imu_mount)
             out[c] = fx if c == "imu_ax" else fy
         elif c in ("body_vx", "body_vy"):
             vx, vy, yaw = at("vcom_x", tt), at("vcom_y", tt), at("yaw", tt)

@@ -259,17 +259,16 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
-    if config.separate:
+    if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
         calib_set = set(int(s) for s in calib_steps)
         block = [s for s in order if s in calib_set][: config.n_fit]
         fit_runs = [block_run(w, [s], plat) for s in block]
-        res = find_gap(fit_runs, scn, workers=workers, thresholds=thr, catalogue=catalogue, progress=progress)
-        fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
-    else:
+    else:  # the first n_fit consecutive ones as one run
         block = fit_block(w, calib_steps, config.n_fit)
-        fit_run = block_run(w, block, plat)
-        res = find_gap(fit_run, scn, workers=workers, thresholds=thr, catalogue=catalogue, progress=progress)
-        fit_duration = float(fit_run.t[-1] - fit_run.t[0])
+        fit_runs = [block_run(w, block, plat)]
+    res = find_gap(fit_runs if config.separate else fit_runs[0], scn, workers=workers, thresholds=thr,
+                   catalogue=catalogue, progress=progress)
+    fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
     steps = [step_residuals(block_run(w, [s], plat), scn, res) for s in held]
     names = steps[0]["space"].regime_names if steps else ()
     held_out = score_held_out(steps, names)

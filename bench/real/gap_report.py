@@ -101,8 +101,9 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
     add("### Where the held-out residual sits\n")
     add("Regimes from measured signals only (bench.gap.regimes; `climbing` = pitch from the accelerometer, "
-        "a_x - dv/dt, above 2 deg and above 3 x the noise of its 0.5 s mean).  Every channel takes part, the pose channels (cumulative) by the growth of "
-        "their error between consecutive samples (bench.gap.residuals.local_terms).\n")
+        "a_x - dv/dt, above 2 deg and above 3 x the noise of its 0.5 s mean).  Every channel takes part, the pose "
+        "channels (cumulative) by the growth of their error between consecutive samples "
+        "(bench.gap.residuals.local_terms).\n")
     add("| regime | share of samples | excess cost before | excess cost after | worst local channel after |")
     add("|---|---:|---:|---:|---|")
     for name, r in ho["regimes"].items():

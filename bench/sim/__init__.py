@@ -145,9 +145,8 @@ def assemble_run(tr: PhysicsTrace, scn: Scenario, seed: int) -> Run:
     ti = times["imu"] / 1e6
     f_b = np.column_stack([at(c, ti) for c in ("fx_b", "fy_b", "fz_b")])
     w_b = np.column_stack([at(c, ti) for c in ("wx", "wy", "wz")])
-    isp = sen.imu
-    alpha = (np.interp(ti, t_phys, np.gradient(truth["wz"], t_phys)) if (isp.lever_x or isp.lever_y) and t_phys.size > 1
-             else None)  # yaw acceleration at the IMU times, for a lever arm only
+    lever = sen.imu.lever_x or sen.imu.lever_y
+    alpha = S.yaw_acceleration(ti, t_phys, truth["wz"]) if lever else None  # the lever arm's tangential term
     acc, gyr = S.imu(ti, f_b, w_b, scn, rng["imu"], alpha)
     for j, ax in enumerate("xyz"):
         cols[f"imu_a{ax}"] = place(times["imu"], acc[:, j])

@@ -69,6 +69,14 @@ def encoders(t: np.ndarray, theta_l: np.ndarray, theta_r: np.ndarray, scn: Scena
     return out[0], out[1]
 
 
+def yaw_acceleration(t: np.ndarray, t_phys: np.ndarray, wz: np.ndarray) -> np.ndarray:
+    """The yaw acceleration [rad/s^2] at times ``t``: the physics-rate yaw rate ``wz`` (times ``t_phys``)
+    differentiated (central differences) and interpolated; zero for a trace of one step."""
+    if t_phys.size < 2:
+        return np.zeros(np.asarray(t).size)
+    return np.interp(t, t_phys, np.gradient(wz, t_phys))
+
+
 def imu_mounting(fx: np.ndarray, fy: np.ndarray, wz: np.ndarray, alpha_z: np.ndarray, yaw_misalignment: float,
                  lever_x: float, lever_y: float) -> tuple[np.ndarray, np.ndarray]:
     """Planar specific force ``(fx, fy)`` [m/s^2] an accelerometer reads when mounted at ``(lever_x, lever_y)`` [m]
