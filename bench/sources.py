@@ -86,6 +86,7 @@ DEFAULT_REFS: dict[str, str] = {
     "slip_velocity_eps": "default 0.02 m/s: numerical smoothing of the Coulomb sign() and floor of the "
                          "rolled-distance speed of the Janosi law (bench.sim.tire), no outcome in view",
     "friction_patches": "default none: uniform ground",
+    "friction_speed_decay": "default 0: friction independent of the sliding speed (Yu 2010 eq. (7), Coulomb)",
 }
 
 

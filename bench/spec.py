@@ -221,6 +221,8 @@ class Terrain:
     rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl); rigid ground only (soil: Bekker compaction)
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
+    # Dugoff's friction reduction with sliding speed, mu(s) = mu / (1 + A_s s) (bench/sim/tire.py) [s/m]; 0 = none
+    friction_speed_decay: float = 0.0
     friction_patches: tuple[FrictionPatch, ...] = ()
     # uneven ground (bench/sim/ground.py): ISO 8608 displacement PSD G_d(n0) [m^3] at n0 = 0.1 cycles/m
     # (class A 16e-6, B 64e-6, C 256e-6, D 1024e-6, E 4096e-6 ...); 0 = flat (GEOM_PLANE, as before)
@@ -258,6 +260,7 @@ class Terrain:
         "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
         "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),
         "slip_velocity_eps": (positive, "> 0"),
+        "friction_speed_decay": (lambda x: 0 <= x <= 20, "in [0, 20] s/m"),
         "roughness_gd0": (lambda x: 0 <= x < 0.1, "in [0, 0.1) m^3 (ISO 8608 G_d(n0))"),
         "roughness_spacing": (lambda x: 0.01 <= x <= 1.0, "in [0.01, 1] m"),
         "roughness_length_x": (lambda x: 1.0 <= x <= 1000.0, "in [1, 1000] m"),

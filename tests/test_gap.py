@@ -319,6 +319,17 @@ def test_bad_input_names_run_and_channel(sim):
         find_gap(empty, SCN, workers=1)
 
 
+def test_a_run_without_residual_channels_is_a_one_line_error_alone_or_among_several(sim):
+    from bench.gap.residuals import CHANNELS
+
+    measured = sim(SCN, 0)
+    keep = [c for c in measured.data.columns if c not in CHANNELS and not c.startswith("gnss_")]  # (GNSS: body_v*)
+    bare = type(measured)(measured.data[keep], dict(measured.meta, run_id="bare-run"))
+    for arg in (bare, [measured, bare]):
+        with pytest.raises(RunError, match="bare-run.*no residual channel"):
+            find_gap(arg, SCN, workers=1)
+
+
 def test_change_of_a_zero_gap_is_zero_not_nan():
     from bench.gap.report import change_text
 

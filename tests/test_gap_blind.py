@@ -118,6 +118,26 @@ def test_float_wheel_speeds_held_by_the_logger_are_not_samples(sim):
         assert res.gap_before[c]["normalised_rms"] <= 1.5, res.gap_before[c]
 
 
+def test_a_replay_starts_from_the_sensors_own_wheel_speeds_not_the_loggers_repeats(sim):
+    """A run that starts in a turn (TURN_START, below) with float wheel speeds forward-filled onto every row: the
+    replay's initial state (speed, yaw rate, skid ratio from the first wheel-speed samples) and the encoder period
+    of its grid are those of the original run, exactly.  Before, the initial speeds averaged the first rows with
+    their repeats (one sample counted twice) and the period was the logger's row interval, not the sensor's."""
+    from bench.gap.model import measured_grid
+
+    sim_run = sim(TURNS, 353, platform__sensors__encoder__counts_per_rev=2**30, **TURN_START)
+    data = sim_run.data.copy()
+    data.loc[data.index[0], ["enc_wl", "enc_wr"]] = np.nan  # the testbed's first sample, a difference with nothing
+    run = type(sim_run)(data.copy(), dict(sim_run.meta))  # before it (0): a driver in motion reports its speed
+    data[["enc_wl", "enc_wr"]] = data[["enc_wl", "enc_wr"]].ffill()
+    held = type(run)(data, dict(run.meta, run_id="held-encoders"))
+    scn = load_scenario(TURNS)
+    (_, a), (_, b) = (replay_scenario(r.without_truth(), scn) for r in (run, held))
+    assert a.speed > 0.3 and a.yaw_rate > 0.1  # a moving, turning start: the first samples decide it
+    assert b == a
+    assert measured_grid(held, {}, b, scn).enc_period == measured_grid(run, {}, a, scn).enc_period
+
+
 def test_quantised_wheel_speeds_that_repeat_are_samples(sim):
     """The testbed's quantised encoders repeat a count difference now and then (the Husky at 30 Hz, whose integer-
     microsecond sample intervals alternate 33333 / 33334 us, so the speeds are off a lattice, but the count

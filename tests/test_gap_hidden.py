@@ -56,6 +56,7 @@ CASES = [
     ("command_accel", COUL, {"platform.command_accel_mean": 3.0, "platform.command_accel_diff": 2.0}, 116,
      {"accel_mean": 3.0, "accel_diff": 2.0}),
     ("lateral_friction", COUL, {"terrain.mu_lat_ratio": 1.3}, 117, {"mu_lat_ratio": 1.3}),
+    ("speed_slip", JAN, {"terrain.friction_speed_decay": 1.2}, 125, {"friction_speed_decay": 1.2}),
     ("motor_torque", JAN, {"platform.motor.stall_torque": _motor(JAN).stall_torque * 0.6,
                            "platform.motor.max_current": _motor(JAN).max_current * 0.6}, 118, {"torque_scale": 0.6}),
     ("encoder_scale", JAN, {"platform.sensors.encoder.scale_error_l": -0.04}, 110, {"scale_error_l": -0.04}),
@@ -67,7 +68,7 @@ CASES = [
 ]
 DEFAULT_RUN = {"rolling_resistance", "shear_displacement", "wheel_radius", "motor_saturation", "encoder_scale",
                "command_limit", "powertrain_lag", "wheel_speed_limit", "command_accel", "lateral_friction",
-               "motor_torque", "encoder_latency", "gyro_scale", "imu_mounting"}
+               "motor_torque", "encoder_latency", "gyro_scale", "imu_mounting", "speed_slip"}
 
 
 def _measured(sim, scenario: str, seed: int, hidden: dict):

@@ -38,9 +38,9 @@ from bench.gap.catalogue import CATALOGUE, BY_NAME, Effect, ModelConfig, get, no
 from bench.gap.fit import Evaluator, FitResult
 from bench.gap.model import measured_grid, plugin_trace, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
-from bench.gap.residuals import CHANNELS, ResidualSpace, build_space, gap_table, regime_table, time_profile
+from bench.gap.residuals import ResidualSpace, build_space, gap_table, regime_table, time_profile
 from bench.gap.select import Selection, Thresholds, run_selection
-from bench.run import Run, RunError
+from bench.run import Run
 from bench.spec import Scenario, load_scenario
 
 
@@ -180,9 +180,8 @@ def find_gap(measured: Run | Sequence[Run], scenario: str | Path | Scenario, mod
     run.validate()
     scn0 = _resolve_scenario(scenario, overrides)
     rscn, init = replay_scenario(run, scn0)
-    space = build_space(run, regimes_for(scn0.platform), channels=tuple(channels) if channels else None)
-    if not space.channels:
-        raise RunError(run.where, "<channels>", sorted(run.data.columns), f"no residual channel of {list(CHANNELS)}")
+    space = build_space(run, regimes_for(scn0.platform), channels=tuple(channels) if channels else None,
+                        required=True)
     grid = measured_grid(run, space.t, init, scn0)
     n_workers = workers if workers is not None else min(2, os.cpu_count() or 1)
     if model == "testbed":

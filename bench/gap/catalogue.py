@@ -114,6 +114,10 @@ def _mu_spec(scn, v):
     return {"terrain.mu_sa": scn.terrain.mu_sa * v[0], "terrain.mu_op": scn.terrain.mu_op * v[0]}
 
 
+def _speed_slip_spec(scn, v):
+    return {"terrain.friction_speed_decay": v[0]}
+
+
 def _shear_spec(scn, v):
     return {"terrain.model": "janosi", "terrain.shear_modulus": v[0]}
 
@@ -252,6 +256,17 @@ CATALOGUE: tuple[Effect, ...] = (
         "turning torques scale with mu (skid-steer turning resistance), straight-line torques "
         "unchanged; yaw response in tight turns changes", "physics",
         lambda s: (1.0,), _phys(_mu_spec), _mu_spec),
+    Effect(
+        "speed_slip", "speed-dependent slip (friction falling with sliding speed)",
+        "Friction falls with the sliding speed |s| of each contact, mu / (1 + A_s |s|) (Dugoff, Fancher and Segel "
+        "1970: mu_0 (1 - A_s V_s) to first order; A_s = friction_speed_decay [s/m]): the faster the wheels slide, "
+        "the less they hold, so the slip grows with speed.",
+        (Param("friction_speed_decay", "s/m", 0.0, 20.0, 0.25),),
+        ("imu_gz", "ref_yaw", "enc_wl", "enc_wr", "tau_l", "tau_r"),
+        "slow manoeuvres as the nominal model, fast ones different: the turn rate per wheel-speed difference and "
+        "the turning torques change with speed (the faster-sliding wheels lose more friction), hard starts spin "
+        "the wheels more; a uniform friction change (mu) would scale the torques alike at every speed", "physics",
+        lambda s: (s.terrain.friction_speed_decay,), _phys(_speed_slip_spec), _speed_slip_spec),
     Effect(
         "shear_displacement", "shear-displacement friction instead of Coulomb",
         "Janosi-Hanamoto shear-displacement friction (Yu 2010 eq. (7)) with shear modulus K "

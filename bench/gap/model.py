@@ -43,6 +43,7 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from bench.gap.residuals import encoder_samples
 from bench.run import Run, RunError
 from bench.spec import CommandSpec, Scenario, Segment, replace
 
@@ -129,8 +130,8 @@ def initial_state(run: Run, scn: Scenario) -> InitialState:
             yaw = est[0]
     speed, yaw_rate, skid = 0.0, 0.0, 1.0
     if run.has("enc_wl") and run.has("enc_wr"):
-        te, el = run.samples("enc_wl")
-        _, er = run.samples("enc_wr")
+        te, el = encoder_samples(run, "enc_wl")  # the sensor's own samples, not a logger's repeats
+        _, er = encoder_samples(run, "enc_wr")
         k = min(4, el.size, er.size)
         if k > 1:  # the first encoder sample is a difference with nothing before it: skip it
             plat = scn.platform
@@ -165,8 +166,8 @@ def _early_encoder_misfit(run: Run, scn: Scenario, initial: InitialState, window
     """Sum of squared encoder residuals [(rad/s)^2] of the nominal model started in ``initial``
     over the samples in (t0, t0 + ``window``] (the first sample, a difference with nothing before
     it, is left out)."""
-    te, el = run.samples("enc_wl")
-    ter, er = run.samples("enc_wr")
+    te, el = encoder_samples(run, "enc_wl")
+    ter, er = encoder_samples(run, "enc_wr")
     times = {"enc_wl": te[1:][te[1:] <= te[0] + window], "enc_wr": ter[1:][ter[1:] <= ter[0] + window]}
     if times["enc_wl"].size == 0 or times["enc_wr"].size == 0:
         return 0.0
@@ -229,7 +230,7 @@ def measured_grid(run: Run, times: Mapping[str, np.ndarray], initial: InitialSta
     """The model evaluation grid: each residual channel's measured sample times."""
     period = 1.0 / scn.platform.sensors.encoder.rate_hz
     if run.has("enc_wl"):
-        te, _ = run.samples("enc_wl")
+        te, _ = encoder_samples(run, "enc_wl")
         if te.size > 2:
             period = float(np.median(np.diff(te)))
     return Grid(dict(times), period, initial)

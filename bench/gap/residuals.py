@@ -56,7 +56,7 @@ from typing import Mapping
 
 import numpy as np
 
-from bench.run import Run
+from bench.run import Run, RunError
 
 CHANNELS: dict[str, tuple[str, float]] = {
     "enc_wl": ("wheel speed", 0.5),
@@ -149,6 +149,14 @@ def held_encoder_rows(run: Run) -> np.ndarray:
     return held
 
 
+def encoder_samples(run: Run, name: str, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(t, values) of a wheel-speed channel's own samples: its finite rows less those the logger only held
+    (:func:`held_encoder_rows`, or the mask ``held`` already computed from it)."""
+    v = run[name]
+    m = np.isfinite(v) & ~(held_encoder_rows(run) if held is None else held)
+    return run.t[m], v[m]
+
+
 def measured_channels(run: Run) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """(t, value) of every residual channel the measured run has (finite samples only; pose rows
     where the reference sensor did not report, :func:`reported_rows`, and wheel speeds held by the logger,
@@ -165,8 +173,7 @@ def measured_channels(run: Run) -> dict[str, tuple[np.ndarray, np.ndarray]]:
                 m = pose_rows & np.isfinite(run[c])
                 t, v = run.t[m], run[c][m]
             elif c in DIFFERENCED_CHANNELS and held_enc.any():
-                m = ~held_enc & np.isfinite(run[c])
-                t, v = run.t[m], run[c][m]
+                t, v = encoder_samples(run, c, held_enc)
             out[c] = (t, v)
     hdg = _heading(run)
     if hdg is not None and run.has("gnss_vx") and run.has("gnss_vy"):
@@ -392,12 +399,15 @@ def alignment_plan(t: Mapping[str, np.ndarray], meas: Mapping[str, np.ndarray], 
 
 
 def build_space(run: Run, regimes_fn, block: float = 2.0, channels: tuple[str, ...] | None = None,
-                model_channels: frozenset[str] | None = None) -> ResidualSpace:
-    """Measured channels, their noise scales, folds (alternating ``block``-s time blocks) and regimes."""
+                model_channels: frozenset[str] | None = None, required: bool = False) -> ResidualSpace:
+    """Measured channels, their noise scales, folds (alternating ``block``-s time blocks) and regimes;
+    ``required``: a run with none of the residual channels is a one-line :class:`~bench.run.RunError`."""
     meas = measured_channels(run)
     wanted = tuple(channels) if channels else tuple(CHANNELS)
     missing = tuple(c for c in wanted if c not in meas or (model_channels is not None and c not in model_channels))
     chans = tuple(c for c in wanted if c not in missing)
+    if required and not chans:
+        raise RunError(run.where, "<channels>", sorted(run.data.columns), f"no residual channel of {list(CHANNELS)}")
     t = {c: meas[c][0] for c in chans}
     vals = {c: meas[c][1] for c in chans}
     sh = {c: max(noise_scale(vals[c]), quantisation_noise(c, vals[c])) for c in chans}

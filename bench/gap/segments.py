@@ -167,7 +167,7 @@ def segment_evaluator(runs: Sequence[Any], scenario: Any, workers: int,
     channels.  Runs that share no residual channel are a one-line :class:`~bench.run.RunError`."""
     from bench.gap.model import measured_grid, replay_scenario, testbed_trace
     from bench.gap.regimes import regimes_for
-    from bench.gap.residuals import CHANNELS, build_space
+    from bench.gap.residuals import build_space
     from bench.run import RunError
 
     parts = []
@@ -175,9 +175,8 @@ def segment_evaluator(runs: Sequence[Any], scenario: Any, workers: int,
         run = run.without_truth()
         run.validate()
         rscn, init = replay_scenario(run, scenario)
-        space = build_space(run, regimes_for(scenario.platform), channels=tuple(channels) if channels else None)
-        if not space.channels:
-            raise RunError(run.where, "<channels>", sorted(run.data.columns), f"no residual channel of {list(CHANNELS)}")
+        space = build_space(run, regimes_for(scenario.platform), channels=tuple(channels) if channels else None,
+                            required=True)
         parts.append(Evaluator(rscn, measured_grid(run, space.t, init, scenario), space, testbed_trace, workers=1))
     out = SegmentEvaluator(parts, workers=workers)
     if not out.space.channels:

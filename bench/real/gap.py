@@ -83,6 +83,10 @@ steps: 0.337 (9).  So the bounded protocol stays.  A hand-built chain of the eff
 (command_map 1.8 / 0.8, command_limit of the half-difference 3.1 rad/s, wheel_speed_limit 6.06 rad/s, 0.43 s delay,
 3x motor, mu_lat 2) reaches 0.22-0.29 on calibration steps 5-30 with 9-10 of 11 improving: no model the catalogue
 can assemble reached 90 % of the steps on the calibration half either.
+Speed-dependent slip (``speed_slip``: friction falling with the sliding speed, Dugoff's mu / (1 + A_s |s|)) was
+added to the catalogue last: it screens at A_s ~ 0 on the fit block (1.9e-20 s/m in round 1, 0.02 in round 2), so
+the data ask for no such effect and the selection is unchanged.  The replay's initial speeds and encoder period now
+come from the sensor's own wheel-speed samples, the logger's repeats left out (held out 39004 -> 7543, 10 of 12).
 """
 from __future__ import annotations
 

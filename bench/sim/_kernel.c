@@ -21,7 +21,7 @@
 #include <string.h>
 
 #define N_REC 28
-#define N_CONST 26
+#define N_CONST 27
 #define SOIL_EPS 0.01  /* bench/sim/testbed.py SOIL_EPS */
 
 typedef struct {
@@ -33,7 +33,7 @@ typedef struct {
     /* constants (bound once per run, from the Python side) */
     double dt, lim, eps, k_max, k_hold, k_hold_dt, mu_roll, pid_slope, mu_sa, mu_op, v_max, i_max, pid_dt;
     double i_side, k_amp, r_eff[2], dt_rr[2];
-    double c_lon, c_lat, mu_lat_ratio, eps2;   /* tire law */
+    double c_lon, c_lat, mu_lat_ratio, eps2, speed_decay;   /* tire law */
     double pid_kp, pid_ki, pid_kd, pid_scale;  /* SidePid */
     double m_gear, m_KB, m_KT, m_Ra, m_imax, m_pmax, m_slope_free, m_k;  /* motor_law */
     int janosi, pid_every, pid_adds_slope;
@@ -149,6 +149,7 @@ static int Kernel_init(Kernel *self, PyObject *args, PyObject *kwds) {
     self->r_eff[0] = c[15]; self->r_eff[1] = c[16]; self->dt_rr[0] = c[17]; self->dt_rr[1] = c[18];
     self->c_lon = c[19]; self->c_lat = c[20]; self->mu_lat_ratio = c[21]; self->eps2 = c[22];
     self->pid_kp = c[23]; self->pid_ki = c[24]; self->pid_kd = c[25];
+    self->speed_decay = c[26];
     self->janosi = (int)iv[0]; self->pid_every = (int)iv[1]; self->pid_adds_slope = (int)iv[2];
     self->n_steps = (long)iv[3];
     if (self->pid_every < 1) {
@@ -297,6 +298,7 @@ static int law_call(Kernel *self, double s_lon, double s_lat, double u, double v
         *stiff = self->k_max;
         return 0;
     }
+    if (self->speed_decay > 0.0) mu = mu / (1.0 + self->speed_decay * s);  /* Dugoff: tire_law's speed_decay */
     double mag;
     if (self->janosi) {
         double v_ref = fabs(u), h;

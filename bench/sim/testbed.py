@@ -318,7 +318,8 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
         pid_dt = dt * pid_every
         pid_adds_slope = pid_every == 1
         volts = [0.0, 0.0]
-        law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_law, eps, k_max)
+        law = tire_law(janosi, terr.mu_lat_ratio, K, terr.shear_modulus_lat_ratio, patch_law, eps, k_max,
+                       terr.friction_speed_decay)
         contact = ContactLaw(law, (p_coef, q_coef) if tire else None,
                              (z_coef, z_exp, rc_coef, n1, tan_phi, ca_coef) if soil else None)
         k_amp = motor.n * motor.gear * motor.eff * motor.K_T  # side torque per ampere of one motor
@@ -335,7 +336,7 @@ def run_physics(scn: Scenario, seed: int, progress: Callable[[float], None] | No
             kern = KERNEL.Kernel(
                 (dt, lim, eps, k_max, k_hold, k_hold_dt, mu_roll, pid_slope, mu_sa, mu_op, v_max, i_max, pid_dt,
                  i_side, k_amp, r_eff[0], r_eff[1], dt_rr[0], dt_rr[1], c_lon, c_lat, terr.mu_lat_ratio, eps2,
-                 plat.pid.kp, plat.pid.ki, plat.pid.kd),
+                 plat.pid.kp, plat.pid.ki, plat.pid.kd, terr.friction_speed_decay),
                 (float(janosi), float(pid_every), float(pid_adds_slope), float(n_steps)),
                 [(fp.x_min, fp.x_max, fp.y_min, fp.y_max, fp.mu_scale, fp.t_period) for fp in patches],
                 ref_l, ref_r, math.hypot)

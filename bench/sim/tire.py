@@ -18,6 +18,10 @@ wheel contact comes from here.  Two laws, chosen by ``Terrain.model``:
 
 ``mu_sa``/``mu_op`` (Yu 2010 Sec. V-A): friction when the motor drives / brakes the wheel, blended
 smoothly on the sign of torque x wheel speed.  Lateral friction is ``mu * mu_lat_ratio``.
+Friction falls with the sliding speed ``|s|`` of the contact point when ``Terrain.friction_speed_decay``
+(A_s [s/m]) is set: ``mu / (1 + A_s |s|)``, Dugoff's friction reduction ``mu_0 (1 - A_s V_s)`` (Dugoff, Fancher
+and Segel, SAE 700377, 1970; V_s the sliding speed) to first order, kept positive at any speed.  It makes the
+slip grow with speed: the wheels of a faster turn slide faster and hold less.
 The force magnitude is capped at ``k_max |s|`` (k_max = m_eff/dt) so the explicit coupling to
 Bullet's chassis integration stays stable at tiny slips (DESIGN.md testbed notes).
 
@@ -91,7 +95,8 @@ def tire_constants(K: float, K_lat_ratio: float, patch: float, eps: float) -> tu
 
 
 def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: float, patch: float,
-             eps: float, k_max: float) -> Callable[[float, float, float, float, float, float], tuple[float, float, float]]:
+             eps: float, k_max: float, speed_decay: float = 0.0
+             ) -> Callable[[float, float, float, float, float, float], tuple[float, float, float]]:
     """The terrain's tire law with its constants bound (called 4 times per physics step):
     ``law(s_lon, s_lat, u, v_lon, normal, mu, ps) -> (F_lon, F_lat, stiffness)``; ``ps`` scales ``patch`` (1: the
     patch as bound; the testbed binds 1 m and passes each wheel's patch length when the platform has a tire model).
@@ -107,6 +112,7 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
     ``K_lat = K * K_lat_ratio`` (tires shear more easily sideways); the force follows the normalised
     displacement while the patch adheres and turns to the sliding direction as it saturates
     (brush-model behaviour: Coulomb direction in full sliding).
+    ``speed_decay`` A_s [s/m]: ``mu`` becomes ``mu / (1 + A_s |s|)`` (module docstring; 0: unchanged, bit for bit).
     """
     hypot, exp = math.hypot, math.exp
     c_lon, c_lat, eps2 = tire_constants(K, K_lat_ratio, patch, eps)
@@ -118,6 +124,8 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
         s = hypot(s_lon, s_lat)
         if s < 1e-12:
             return 0.0, 0.0, k_max
+        if speed_decay > 0.0:
+            mu = mu / (1.0 + speed_decay * s)
         v_ref = abs(u)  # max(|u|, hypot(v_lon, s_lat), eps), without the builtin's call cost
         h = hypot(v_lon, s_lat)
         if h > v_ref:
@@ -141,6 +149,8 @@ def tire_law(model_janosi: bool, mu_lat_ratio: float, K: float, K_lat_ratio: flo
         s = hypot(s_lon, s_lat)
         if s < 1e-12:
             return 0.0, 0.0, k_max
+        if speed_decay > 0.0:
+            mu = mu / (1.0 + speed_decay * s)
         mag = mu * normal * s / math.sqrt(s * s + eps2)
         if mag > k_max * s:
             mag = k_max * s

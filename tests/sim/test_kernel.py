@@ -2,7 +2,8 @@
 the same physics-rate trace, bit for bit, on every branch the loop has (Janosi and Coulomb laws, a
 standing wheel held on a ramp, an initial speed, a controller slower than the physics, saturating
 motors, unequal wheel radii, the command map, friction patches steady and periodic, rate-limited
-references, a stiff terrain at its own physics step, the pneumatic and solid tire contacts with a CoM offset)."""
+references, a stiff terrain at its own physics step, the pneumatic and solid tire contacts with a CoM offset,
+friction falling with the sliding speed)."""
 from __future__ import annotations
 
 import pytest
@@ -39,6 +40,9 @@ CASES = {
     "soil_dirt_rough_straight": ("liu_straight", {"duration": 1.5}),
     "pneumatic_standing_on_ramp": ("ramp_wood_15", {"duration": 1.0, "platform.tire_pressure": 2.0e5,
                                                      "platform.cg_offset_x": -0.05}),
+    # issue 32: friction falling with the sliding speed (Dugoff), on both laws
+    "speed_decay_coulomb_rotation": ("gap_dev_coulomb", {"duration": 2.0, "terrain.friction_speed_decay": 3.0}),
+    "speed_decay_janosi_circle": ("circle_vinyl", {"duration": 2.0, "terrain.friction_speed_decay": 1.5}),
 }
 
 

@@ -62,3 +62,23 @@ def test_cornering_stiffness_of_the_janosi_law_is_mu_w_l_over_2_k_lat(patch):
     alpha = 1e-5
     _, f_lat, _ = law(0.0, v * alpha, v, v, W, mu, patch)
     assert -f_lat / alpha == pytest.approx(mu * ratio * W * patch / (2 * K * k_lat_ratio), rel=1e-4)
+
+
+@pytest.mark.parametrize("janosi", [False, True], ids=["coulomb", "janosi"])
+def test_friction_speed_decay_is_dugoffs_reduction_of_the_sliding_force(janosi):
+    """In full sliding (patch saturated) the force magnitude is mu N / (1 + A_s |s|) (times Coulomb's smooth
+    sign): Dugoff's mu_0 (1 - A_s V_s) to first order, computed here by hand; A_s = 0 gives the law's own force
+    bit for bit."""
+    mu, n, a_s = 0.7, W, 2.5
+    base = tire_law(janosi, 1.0, 1e-6, 1.0, 0.05, 0.02, k_max=1e12)
+    decayed = tire_law(janosi, 1.0, 1e-6, 1.0, 0.05, 0.02, k_max=1e12, speed_decay=a_s)
+    for s_lon, s_lat in ((0.8, 0.0), (0.3, -0.4), (0.05, 0.12)):
+        s = math.hypot(s_lon, s_lat)
+        f0 = base(s_lon, s_lat, 0.1, 0.1 + s_lon, n, mu)
+        f1 = decayed(s_lon, s_lat, 0.1, 0.1 + s_lon, n, mu)
+        assert math.hypot(*f1[:2]) == pytest.approx(math.hypot(*f0[:2]) / (1 + a_s * s), rel=1e-12)
+        sat = 1.0 if janosi else s / math.sqrt(s * s + 0.02 ** 2)  # Janosi saturated; Coulomb's smooth sign
+        assert math.hypot(*f1[:2]) == pytest.approx(sat * mu * n / (1 + a_s * s), rel=2e-3)
+        assert f1[0] * s_lon <= 0 and f1[1] * s_lat <= 0  # still against the sliding
+    off = tire_law(janosi, 1.0, 1e-6, 1.0, 0.05, 0.02, k_max=1e12, speed_decay=0.0)
+    assert off(0.3, -0.4, 0.1, 0.4, n, mu) == base(0.3, -0.4, 0.1, 0.4, n, mu)
