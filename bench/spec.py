@@ -221,7 +221,8 @@ class Terrain:
     rolling_resistance: float = 0.0371  # mu_roll (Yu Table II, vinyl); rigid ground only (soil: Bekker compaction)
     slope: float = 0.0  # ramp angle [rad], from slope_deg in files
     slip_velocity_eps: float = 0.02  # [m/s] smoothing of Coulomb sign()
-    # Dugoff's friction reduction with sliding speed, mu(s) = mu / (1 + A_s s) (bench/sim/tire.py) [s/m]; 0 = none
+    # Dugoff's friction reduction with sliding speed, mu(s) = mu / (1 + A_s s) (bench/sim/tire.py) [s/m]; 0 = none;
+    # on Bekker soil it scales the shear strength c A + W tan(phi) alike; the bound 20 s/m is a search range
     friction_speed_decay: float = 0.0
     friction_patches: tuple[FrictionPatch, ...] = ()
     # uneven ground (bench/sim/ground.py): ISO 8608 displacement PSD G_d(n0) [m^3] at n0 = 0.1 cycles/m

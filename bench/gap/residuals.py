@@ -151,7 +151,8 @@ def held_encoder_rows(run: Run) -> np.ndarray:
 
 def encoder_samples(run: Run, name: str, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(t, values) of a wheel-speed channel's own samples: its finite rows less those the logger only held
-    (:func:`held_encoder_rows`, or the mask ``held`` already computed from it)."""
+    (:func:`held_encoder_rows`, or the mask ``held`` already computed from it).  A logger's copies of a zero
+    reading stay: they cannot be told from a wheel at rest reporting 0 at the sensor's rate."""
     v = run[name]
     m = np.isfinite(v) & ~(held_encoder_rows(run) if held is None else held)
     return run.t[m], v[m]

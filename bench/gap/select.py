@@ -78,7 +78,8 @@ seeds 0-4) gives the same verdicts as before (10 nulls unnamed, 52/52 single and
 effects named, 4/4 friction patches unexplained):
 
 * ``SIGNIFICANCE_P = 1e-6`` (chi2 quantile 23.9 for one parameter, 27.6 for two): Bonferroni over
-  the ~26 candidate tests of a workflow keeps the false-name rate ~3e-5 per run for white noise;
+  the ~26 candidate tests of a workflow keeps the false-name rate ~3e-5 per run for white noise (the
+  catalogue has since grown to 22 effects: ~45-65 tests over 2-3 rounds, ~6e-5, the same order);
   the margin covers residuals that are not quite white (quantisation, bias random walks).  Not
   tuned: no development run is near it (in the null runs no screening gain could reach it, so
   nothing was refined; true effects >= 6.2e3).  It does not replace the relative tests: the wrong

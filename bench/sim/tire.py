@@ -21,7 +21,10 @@ smoothly on the sign of torque x wheel speed.  Lateral friction is ``mu * mu_lat
 Friction falls with the sliding speed ``|s|`` of the contact point when ``Terrain.friction_speed_decay``
 (A_s [s/m]) is set: ``mu / (1 + A_s |s|)``, Dugoff's friction reduction ``mu_0 (1 - A_s V_s)`` (Dugoff, Fancher
 and Segel, SAE 700377, 1970; V_s the sliding speed) to first order, kept positive at any speed.  It makes the
-slip grow with speed: the wheels of a faster turn slide faster and hold less.
+slip grow with speed: the wheels of a faster turn slide faster and hold less.  The whole law is scaled: the Janosi
+law's small-slip stiffness (proportional to mu) falls with it, a second-order change there since |s| is small, where
+Dugoff's linear region keeps its stiffness; on Bekker soil the shear strength ``c A + W tan(phi)`` (the ``mu`` the
+testbed passes) falls alike.
 The force magnitude is capped at ``k_max |s|`` (k_max = m_eff/dt) so the explicit coupling to
 Bullet's chassis integration stays stable at tiny slips (DESIGN.md testbed notes).
 
