@@ -104,3 +104,23 @@ def test_a_hidden_effect_is_named_and_fitted_from_two_runs(sim):
 def test_several_runs_need_the_testbed_model(sim):
     with pytest.raises(ValueError, match="testbed model only"):
         find_gap([sim(SCN, 140), sim(SCN, 140)], SCN, model="yu2010.closed_loop")
+
+
+def test_where_the_gap_sits_is_told_on_each_runs_own_clock(sim):
+    """Two runs fitted together; the model's gyro made wrong by 0.2 rad/s in the second run only, between 3 and 5 s
+    of that run's own time: the 2 s window of the largest excess is that run's [3, 5] s (not the joined axis's
+    [offset + 3, offset + 5]), and the report text says so."""
+    from bench.gap import _concentration
+    from bench.gap.report import window_text
+
+    scn = load_scenario(SCN)
+    runs = [sim(SCN, 143).without_truth(), sim(SCN, 144).without_truth()]
+    ev = segment_evaluator(runs, scn, workers=1)
+    sp = ev.space
+    parts = sp.split(ev.signals(nominal_config(ev.scn)))
+    t2 = sp.parts[1].t["imu_gz"]
+    parts[1]["imu_gz"] = parts[1]["imu_gz"] + 0.2 * ((t2 >= 3.0) & (t2 < 5.0))
+    c = _concentration(sp, sp.join(parts), {})
+    assert c["window_runs"] == [2, 2]
+    assert c["window_s"] == pytest.approx([3.0, 5.0], abs=0.26)  # to the 0.5 s bins of the profile
+    assert window_text(c).endswith(" s of run 2")

@@ -40,6 +40,7 @@ from bench.gap.model import measured_grid, plugin_trace, replay_scenario, testbe
 from bench.gap.regimes import regimes_for
 from bench.gap.residuals import ResidualSpace, build_space, gap_table, regime_table, time_profile
 from bench.gap.select import Selection, Thresholds, run_selection
+from bench.gap.report import window_text
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
 
@@ -128,6 +129,11 @@ def _concentration(space: ResidualSpace, signals: Mapping[str, np.ndarray], regi
         k = int(np.argmax(csum))
         out["window_s"] = [float(centres[k] - 0.25), float(centres[min(k + w - 1, centres.size - 1)] + 0.25)]
         out["window_share"] = float(csum[k] / total)
+        offsets = getattr(space, "offsets", ())  # several runs (bench.gap.segments): each end on its run's own clock
+        if offsets:
+            runs = [max(int(np.searchsorted(offsets, t, side="right")) - 1, 0) for t in out["window_s"]]
+            out["window_s"] = [t - offsets[r] for t, r in zip(out["window_s"], runs)]
+            out["window_runs"] = [r + 1 for r in runs]
     if regimes:
         # the regime with the most intense disagreement (mean excess per sample) among those that
         # last >= 5 % of the run; its share of the total excess beside it
@@ -256,7 +262,7 @@ def _assemble(run_id: str, scn: Scenario, model: str, ev: Evaluator, sel: Select
         kind = "unexplained_residual"
         c = conc_a if partial else conc_b
         where = (f"largest in regime {c.get('regime', '?')} (channel {c.get('regime_channel', '?')}"
-                 + (f", t = {c['window_s'][0]:.1f}-{c['window_s'][1]:.1f} s" if "window_s" in c else "") + ")")
+                 + (f", t = {window_text(c)}" if "window_s" in c else "") + ")")
         left = 100.0 * (1.0 - sel.explained_fraction) if partial else 100.0
         if partial:
             verdict = (f"unexplained residual: {left:.0f}% of the excess gap remains after the best candidate(s) "

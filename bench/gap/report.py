@@ -35,6 +35,17 @@ def change_text(before: float, after: float) -> str:
     return f"{100.0 * (after / before - 1.0):+.0f}%"
 
 
+def window_text(conc: Mapping[str, Any]) -> str:
+    """The 2 s window of a concentration (``window_s``; ``window_runs`` when several runs were fitted: each end on its
+    own run's clock, runs counted from 1)."""
+    (a, b), runs = conc["window_s"], conc.get("window_runs")
+    if not runs:
+        return f"{a:.1f}-{b:.1f} s"
+    if runs[0] == runs[1]:
+        return f"{a:.1f}-{b:.1f} s of run {runs[0]}"
+    return f"{a:.1f} s of run {runs[0]} to {b:.1f} s of run {runs[1]}"
+
+
 def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
     """The std. error cell: "not identified" when the data do not determine the parameter (infinite
     standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
@@ -141,7 +152,7 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
         win = cc.get("window_s")
         L.append(f"- {when}: most intense in regime **{cc.get('regime', '-')}**, which carries "
                  f"{100 * cc.get('regime_share', 0):.0f}% of the excess (worst channel there: {cc.get('regime_channel', '-')})"
-                 + (f"; 2 s window {win[0]:.1f}-{win[1]:.1f} s holds {100 * cc['window_share']:.0f}%" if win else ""))
+                 + (f"; 2 s window {window_text(cc)} holds {100 * cc['window_share']:.0f}%" if win else ""))
     L.append("")
     L.append("Excess cost per sample over every channel's local term (the pose residuals accumulate, so they take "
              "part by the growth of their error between consecutive samples: bench.gap.residuals.local_terms):")
