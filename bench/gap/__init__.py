@@ -275,7 +275,7 @@ def _assemble(run_id: str, scn: Scenario, model: str, ev: Evaluator, sel: Select
         candidates.append({
             "round": i + 1, "accepted": r.accepted, "gain": r.gain, "chi2": r.chi2, "reason": r.reason,
             "screening": [{"effect": s.effect, "estimate": list(s.theta), "predicted_cost": s.predicted_cost,
-                           "how": s.note} for s in r.screens],
+                           "simulated_cost": s.simulated_cost, "how": s.note} for s in r.screens],
             "fits": [f.brief() for f in r.fits],
         })
     jn = sel.j_noise

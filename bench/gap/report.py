@@ -168,10 +168,12 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
     for r in res.candidates:
         L.append(f"Round {r['round']}: {'accepted' if r['accepted'] else 'rejected'} ({r['reason']}).")
         L.append("")
-        L.append("| effect | screening estimate | screening cost | how |")
-        L.append("|---|---|---|---|")
+        L.append("| effect | screening estimate | screening cost | simulated at the estimate | how |")
+        L.append("|---|---|---|---|---|")
         for s in sorted(r["screening"], key=lambda s: s["predicted_cost"]):
-            L.append(f"| {s['effect']} | {', '.join(_f(x) for x in s['estimate'])} | {_f(s['predicted_cost'], 4)} | {s['how']} |")
+            sim = s.get("simulated_cost")
+            L.append(f"| {s['effect']} | {', '.join(_f(x) for x in s['estimate'])} | {_f(s['predicted_cost'], 4)} | "
+                     f"{'-' if sim is None else _f(sim, 4)} | {s['how']} |")
         L.append("")
         if r["fits"]:
             L.append("| refined model | cost | held-out cost |")
