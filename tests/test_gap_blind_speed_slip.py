@@ -5,7 +5,7 @@ scenarios, seeds (>= 700) and magnitudes of its own.
 They found one defect: a uniform friction scale of 0.8 hidden on gap_test_coulomb (seed 721) and gap_test_janosi
 (seed 727) was named "speed_slip" (A_s 3.06 and 1.70), the friction change not even refined: the screening ranked
 candidates by a linear prediction of their cost, which put friction (predicted 363) behind speed_slip (129).  Each
-linearised estimate is now simulated as well (bench.gap.fit.simulate_estimates: friction's costs 36) and the best
+linearised estimate is now simulated as well (bench.gap.screening.simulate_estimates: friction's costs 36) and the best
 candidates by either cost are refined."""
 from __future__ import annotations
 

@@ -104,8 +104,8 @@ from typing import Sequence
 import numpy as np
 
 from bench.gap.catalogue import CATALOGUE, Effect, nominal_config
-from bench.gap.fit import (Evaluator, FitResult, Layout, Screen, measured_current_ceiling, refine, refine_many, screen,
-                           screen_configs, simulate_estimates)
+from bench.gap.fit import Evaluator, FitResult, Layout, refine, refine_many
+from bench.gap.screening import Screen, measured_current_ceiling, screen, screen_configs, simulate_estimates
 from bench.gap.significance import FitQuality, chi2_gain, chi2_scale, chi2_threshold, detection_limits, fit_quality
 
 KAPPA = 0.02
@@ -224,8 +224,9 @@ def run_selection(ev: Evaluator, catalogue: Sequence[Effect] = CATALOGUE, thr: T
         screens = simulate_estimates(ev, cands, [screen(ev, e, base, cost0, z0, sig0, ceiling) for e in cands], base)
         if progress:
             progress(f"screened {len(screens)} effects ({ev.n_sims} simulations so far)")
-        # the best candidates by the linear prediction, then those by the better of it and the simulated cost at the
-        # estimate that the first ranking left out (bench.gap.fit.simulate_estimates: each ranking has a blind spot)
+        # the best candidates by the linear prediction, then those by the better of it and the simulated cost at
+        # the estimate that the first ranking left out (bench.gap.screening.simulate_estimates: each ranking has a
+        # blind spot)
         gains = np.array([cost0 - s.predicted_cost for s in screens])
         pick = _top(gains, thr)
         best = np.array([cost0 - s.best_cost for s in screens])
