@@ -43,7 +43,7 @@ from typing import Any, Mapping
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
-from bench.gap.residuals import encoder_samples
+from bench.gap.residuals import encoder_samples, held_encoder_rows
 from bench.run import Run, RunError
 from bench.spec import CommandSpec, Scenario, Segment, replace
 
@@ -130,8 +130,7 @@ def initial_state(run: Run, scn: Scenario) -> InitialState:
             yaw = est[0]
     speed, yaw_rate, skid = 0.0, 0.0, 1.0
     if run.has("enc_wl") and run.has("enc_wr"):
-        te, el = encoder_samples(run, "enc_wl")  # the sensor's own samples, not a logger's repeats
-        _, er = encoder_samples(run, "enc_wr")
+        (te, el), (_, er) = _wheel_samples(run)  # the sensor's own samples, not a logger's repeats
         k = min(4, el.size, er.size)
         if k > 1:  # the first encoder sample is a difference with nothing before it: skip it
             plat = scn.platform
@@ -143,6 +142,13 @@ def initial_state(run: Run, scn: Scenario) -> InitialState:
                 yaw_rate, skid = _start_turn(run, float((tread_r - tread_l) / plat.track), float(te[0]),
                                              float(te[k - 1]))
     return InitialState(float(x), float(y), float(yaw), speed, yaw_rate, skid)
+
+
+def _wheel_samples(run: Run) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """((t, w_l), (t, w_r)): both wheel-speed channels' own samples (:func:`bench.gap.residuals.encoder_samples`,
+    the logger's repeats found once for both)."""
+    held = held_encoder_rows(run)
+    return encoder_samples(run, "enc_wl", held), encoder_samples(run, "enc_wr", held)
 
 
 def _start_turn(run: Run, wheels: float, t0: float, t1: float) -> tuple[float, float]:
@@ -166,8 +172,7 @@ def _early_encoder_misfit(run: Run, scn: Scenario, initial: InitialState, window
     """Sum of squared encoder residuals [(rad/s)^2] of the nominal model started in ``initial``
     over the samples in (t0, t0 + ``window``] (the first sample, a difference with nothing before
     it, is left out)."""
-    te, el = encoder_samples(run, "enc_wl")
-    ter, er = encoder_samples(run, "enc_wr")
+    (te, el), (ter, er) = _wheel_samples(run)
     times = {"enc_wl": te[1:][te[1:] <= te[0] + window], "enc_wr": ter[1:][ter[1:] <= ter[0] + window]}
     if times["enc_wl"].size == 0 or times["enc_wr"].size == 0:
         return 0.0
@@ -227,12 +232,13 @@ def replay_scenario(run: Run, scn: Scenario) -> tuple[Scenario, InitialState]:
 
 
 def measured_grid(run: Run, times: Mapping[str, np.ndarray], initial: InitialState, scn: Scenario) -> Grid:
-    """The model evaluation grid: each residual channel's measured sample times."""
+    """The model evaluation grid: each residual channel's measured sample times (the encoder's counting period: the
+    median interval of its own samples, ``times["enc_wl"]`` when the space has the channel, the logger's repeats
+    left out either way)."""
     period = 1.0 / scn.platform.sensors.encoder.rate_hz
-    if run.has("enc_wl"):
-        te, _ = encoder_samples(run, "enc_wl")
-        if te.size > 2:
-            period = float(np.median(np.diff(te)))
+    te = times["enc_wl"] if "enc_wl" in times else (encoder_samples(run, "enc_wl")[0] if run.has("enc_wl") else None)
+    if te is not None and te.size > 2:
+        period = float(np.median(np.diff(te)))
     return Grid(dict(times), period, initial)
 
 

@@ -50,10 +50,18 @@ def _smooth(v: np.ndarray, n: int) -> np.ndarray:
     return np.convolve(pad, k, mode="valid")
 
 
-def _interp_channel(run: Run, name: str, grid: np.ndarray) -> np.ndarray | None:
+def _samples(run: Run, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """(t, values) of channel ``name``'s samples, None when the run has none."""
     if name not in run.data.columns or not run.has(name):
         return None
-    t, v = run.samples(name)
+    return run.samples(name)
+
+
+def _interp_channel(run: Run, name: str, grid: np.ndarray) -> np.ndarray | None:
+    s = _samples(run, name)
+    if s is None:
+        return None
+    t, v = s
     return np.interp(grid, t, v)
 
 
@@ -64,16 +72,18 @@ def forward_specific_force(run: Run, platform: Platform, grid: np.ndarray) -> np
     turned back with a_y, then the lever arm's -w^2 l_x - alpha l_y taken out with the gyro's yaw rate (its declared
     gain and bias undone) and its derivative at the gyro's rate.  The raw a_x when nothing is declared or a channel
     it needs is missing; None without a_x."""
-    if "imu_ax" not in run.data.columns or not run.has("imu_ax"):
+    acc = _samples(run, "imu_ax")
+    if acc is None:
         return None
     imu = platform.sensors.imu
-    ta, ax = run.samples("imu_ax")
-    if imu.yaw_misalignment and "imu_ay" in run.data.columns and run.has("imu_ay"):
-        ay = np.interp(ta, *run.samples("imu_ay"))
+    ta, ax = acc
+    lateral = _samples(run, "imu_ay") if imu.yaw_misalignment else None
+    if lateral is not None:
+        ay = np.interp(ta, *lateral)
         ax = np.cos(imu.yaw_misalignment) * ax - np.sin(imu.yaw_misalignment) * ay
-    if (imu.lever_x or imu.lever_y) and imu.gyro_scale_z != 0.0 and "imu_gz" in run.data.columns \
-            and run.has("imu_gz"):
-        tg, gz = run.samples("imu_gz")
+    gyro = _samples(run, "imu_gz") if (imu.lever_x or imu.lever_y) and imu.gyro_scale_z != 0.0 else None
+    if gyro is not None:
+        tg, gz = gyro
         w = (gz - imu.gyro_bias_z) / imu.gyro_scale_z
         alpha = np.gradient(w, tg) if tg.size > 1 else np.zeros_like(w)
         ax = ax + np.interp(ta, tg, w) ** 2 * imu.lever_x + np.interp(ta, tg, alpha) * imu.lever_y

@@ -227,11 +227,9 @@ def run_selection(ev: Evaluator, catalogue: Sequence[Effect] = CATALOGUE, thr: T
         # the best candidates by the linear prediction, then those by the better of it and the simulated cost at
         # the estimate that the first ranking left out (bench.gap.screening.simulate_estimates: each ranking has a
         # blind spot)
-        gains = np.array([cost0 - s.predicted_cost for s in screens])
-        pick = _top(gains, thr)
-        best = np.array([cost0 - s.best_cost for s in screens])
-        pick += [i for i in _top(best, thr) if i not in pick]
-        gains = np.maximum(gains, best)
+        pick = _top(np.array([cost0 - s.predicted_cost for s in screens]), thr)
+        gains = np.array([cost0 - s.best_cost for s in screens])  # >= the linear ones: best_cost <= predicted_cost
+        pick += [i for i in _top(gains, thr) if i not in pick]
         gated = False
         if excess < thr.min_gain * jn:  # only the whole-log test can pass: refine what could reach it
             bound = chi2_scale(space, z0)
