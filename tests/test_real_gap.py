@@ -205,3 +205,29 @@ def test_a_zero_gap_prints_zero_percent_not_nan(gap_run: dict) -> None:
     md = _markdown(doc, False, "x_gap")
     lines = [ln for ln in md.splitlines() if ln.startswith(f"| {ch} |")]
     assert len(lines) == 2 and all("| +0% |" in ln and "nan" not in ln for ln in lines), lines
+
+
+def test_per_step_ratio_and_steps_not_lowered(gap_run: dict) -> None:
+    """The report's per-step summary: quartiles of final / nominal cost (numpy's percentile of the per-step
+    costs, a second computation) and the ids of the steps whose cost the final model does not lower."""
+    doc = gap_run["doc"]
+    hc = doc["held_out"]["cost"]
+    before = np.array([p["before"] for p in hc["per_step"]])
+    after = np.array([p["after"] for p in hc["per_step"]])
+    assert hc["ratio_quartiles"] == pytest.approx(np.percentile(after / before, [25, 50, 75]), rel=1e-12)
+    worse = [s for s, b, a in zip(doc["held_out_steps"], before, after) if a >= b]
+    assert hc["steps_improved"] == len(before) - len(worse)
+    md = (gap_run["out"] / "husky_gap.md").read_text()
+    line = next(x for x in md.splitlines() if x.startswith("Per step, final / nominal cost"))
+    if worse:
+        assert line.rstrip(".").split("not lowered on ")[1].split(" ", 1)[1] == ", ".join(map(str, worse))
+    else:
+        assert line.endswith("lowered on every step.")
+
+
+def test_bounded_run_holds_out_every_test_step() -> None:
+    """make reproduce scores the whole test half, not a subset of it (issue 32: 100 Husky steps)."""
+    from bench.real.gap import BOUNDED, FULL
+
+    assert BOUNDED.n_test is None and FULL.n_test is None
+    assert "every test-half step" in BOUNDED.describe()

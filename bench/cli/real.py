@@ -108,7 +108,7 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--json", type=Path, default=None, help="also copy the JSON document here")
     p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
-    p.add_argument("--full", action="store_true", help="every held-out step and three fit steps (slow)")
+    p.add_argument("--full", action="store_true", help="three consecutive fit steps instead of two")
     p.add_argument("--fit-steps", type=count(1), default=None, metavar="N",
                    help="fit on the first N calibration steps, each replayed on its own from its measured initial "
                         "state (bench.gap.segments), instead of the first consecutive ones as one run")

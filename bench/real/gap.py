@@ -16,7 +16,7 @@ Protocol (:func:`run_real_gap`):
    ``husky`` platform on ``asphalt``, the measured commanded wheel speeds replayed by
    :func:`bench.gap.model.replay_scenario`): screening, fits and greedy selection over the effect
    catalogue; its own two-fold cross-validation runs inside the fit block.
-4. **Held-out scoring**: each of the first ``n_test`` test-half steps (one Run per step, replayed
+4. **Held-out scoring**: each test-half step (the first ``n_test`` when bounded; one Run per step, replayed
    from its own measured initial state) is simulated with the nominal model and with the model the
    workflow ended with (named effects, or the partial candidates when it named nothing), and the
    residuals measured - model are pooled over those steps per channel (RMS [SI], normalised RMS)
@@ -27,8 +27,8 @@ same bytes):
 ``<out>/husky_gap.md``, ``husky_gap.json`` and ``husky_gap.png``.
 
 Bounded run (``make reproduce`` / ``skidbench reproduce real``): :data:`BOUNDED` (2 fit steps =
-12 s, up to two effects, 12 held-out steps); ``python -m bench.real.gap --full`` runs
-:data:`FULL` (3 fit steps, up to two effects, every test-half step held out).
+12 s, up to two effects, every test-half step held out: 100 on the Husky, ~10 s of replays);
+``python -m bench.real.gap --full`` runs :data:`FULL` (3 fit steps, up to two effects, every test-half step).
 
 History: the first run of this workflow on these data (catalogue without command effects) named
 nothing and showed that the wheels do not follow the logged commands; the catalogue's
@@ -87,6 +87,15 @@ Speed-dependent slip (``speed_slip``: friction falling with the sliding speed, D
 added to the catalogue last: it screens at A_s ~ 0 on the fit block (1.9e-20 s/m in round 1, 0.02 in round 2), so
 the data ask for no such effect and the selection is unchanged.  The replay's initial speeds and encoder period now
 come from the sensor's own wheel-speed samples, the logger's repeats left out (held out 39004 -> 7543, 10 of 12).
+Until then the bounded run scored the first 12 test-half steps only (a time bound from when a replay was slow); a
+replay now takes ~0.05 s, and the whole test half (100 steps) costs ~10 s more.  Over the 100 steps the same model
+gives 36717 -> 8891 (24.2 %, against 19.3 % on the first 12) and lowers the cost on 84 (the 12 were a favourable
+sample); the report gives those numbers.  Fitted on more calibration steps the held-out result gets worse, not better
+(whole test half: 3 consecutive steps 25.9 %, 86 of 100; 6 steps each on its own 29.3 %, 76; 12 steps 37.4 %, 67,
+where the selection takes a per-side lag of 0.71 / 1.50 s, its upper bound, for the dead time), and a two-fold
+cross-validation by step instead of by alternate 2 s blocks selects the same: the catalogue's models of this robot
+differ in which compromise they strike for the yaw response the testbed Husky lacks (its chi ~1.9 against the
+robot's ~2.5), so no larger fit set was adopted.
 """
 from __future__ import annotations
 
@@ -132,7 +141,7 @@ class GapRunConfig:
         return f"{fit}, at most {self.max_effects} effect(s) selected, {held} held out"
 
 
-BOUNDED = GapRunConfig(n_fit=2, n_test=12, max_effects=2)
+BOUNDED = GapRunConfig(n_fit=2, n_test=None, max_effects=2)
 FULL = GapRunConfig(n_fit=3, n_test=None, max_effects=2)
 
 

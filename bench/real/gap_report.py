@@ -96,9 +96,17 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
             f"{_g(r['normalised_rms_before'])} | {_g(r['normalised_rms_after'])} | {r['n']} |")
     add("")
     hc = ho["cost"]
-    add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])} -> final {_g(hc['after_mean'])} "
+    share = (f" ({100 * hc['after_mean'] / hc['before_mean']:.1f} % of the nominal)" if hc["before_mean"] > 0
+             else "")
+    add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])} -> final {_g(hc['after_mean'])}{share} "
         f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
         f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
+    worse = [str(s) for s, c in zip(doc["held_out_steps"], hc["per_step"]) if not c["after"] < c["before"]]
+    if "ratio_quartiles" in hc:
+        q = hc["ratio_quartiles"]
+        add(f"Per step, final / nominal cost: median {_g(q[1], 3)} (quartiles {_g(q[0], 3)}-{_g(q[2], 3)}); "
+            + (f"not lowered on step{'s' if len(worse) > 1 else ''} {', '.join(worse)}.\n" if worse
+               else "lowered on every step.\n"))
     add("### Where the held-out residual sits\n")
     add("Regimes from measured signals only (bench.gap.regimes; `climbing` = pitch from the accelerometer, "
         "a_x - dv/dt, above 2 deg and above 3 x the noise of its 0.5 s mean).  Every channel takes part, the pose "

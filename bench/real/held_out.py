@@ -128,10 +128,13 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
     cost_b = [s["cost"]["before"] for s in steps]
     cost_a = [s["cost"]["after"] for s in steps]
     jn = [s["j_noise"] for s in steps]
+    ratio = np.array([a / b if b > 0 else math.nan for a, b in zip(cost_a, cost_b)])
+    q = np.nanquantile(ratio, [0.25, 0.5, 0.75]) if np.isfinite(ratio).any() else np.full(3, math.nan)
     return {
         "channels": per, "regimes": regimes, "worst_regime": worst,
         "cost": {"before_mean": float(np.mean(cost_b)), "after_mean": float(np.mean(cost_a)),
                  "j_noise_mean": float(np.mean(jn)),
                  "steps_improved": int(sum(a < b for a, b in zip(cost_a, cost_b))), "n_steps": len(steps),
+                 "ratio_quartiles": [float(v) for v in q],  # of final / nominal per step
                  "per_step": [{"before": b, "after": a, "j_noise": j} for b, a, j in zip(cost_b, cost_a, jn)]},
     }
