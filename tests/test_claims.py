@@ -429,3 +429,13 @@ def test_report_of_5_papers_x_20_claims_with_2000_character_notes_stays_short(tm
     assert '<a id="claim-c7"></a>' in details and "n" * 2000 in details
     assert "(claims_details.md#claim-c7)" in readme
     assert "- checks beyond the paper (3)" in report and "- headline claims (12)" in report
+
+
+def test_committed_results_have_no_table_cell_over_the_limit() -> None:
+    """Every markdown file under results/ as committed (the paper reports, the real-data and gap reports, the
+    league, the quick run): no table cell over CELL_LIMIT characters."""
+    root = Path(__file__).resolve().parents[1] / "results"
+    files = sorted(root.rglob("*.md"))
+    assert files
+    bad = {str(f.relative_to(root)): [c[:60] for c in long_cells(f.read_text())] for f in files}
+    assert {k: v for k, v in bad.items() if v} == {}

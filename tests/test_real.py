@@ -347,6 +347,25 @@ def test_unmet_verdict_is_reported(husky_slice: Path, tmp_path: Path) -> None:
     assert "**Not met**" in md and f"{v['ideal_dd_median_trans']:.3f} m" in md
 
 
+def test_a_long_parameter_list_goes_below_the_table_whole(husky_slice: Path, tmp_path: Path) -> None:
+    """A model with more parameters than a 300-character cell holds: the cell points below the table, where the
+    list stands whole (every value), and no table cell of the report is over the limit."""
+    from bench.report.cells import CELL_LIMIT, long_cells
+
+    @dataclasses.dataclass(frozen=True)
+    class ManyParams(SymmetricChi):
+        def params(self) -> dict[str, float]:
+            return {f"coefficient_{k:02d}": 0.25 * k for k in range(30)}
+
+    run_real_benchmark(husky_slice, tmp_path, models=[IdealDD(R, B), ManyParams(R, B, name="many")], figures=False)
+    md = (tmp_path / "husky.md").read_text()
+    assert long_cells(md) == []
+    row = next(x for x in md.splitlines() if x.startswith("| `many` |") and "listed below" in x)
+    assert len(row) < CELL_LIMIT
+    whole = next(x for x in md.splitlines() if x.startswith("- `many`: "))
+    assert whole == "- `many`: " + ", ".join(f"coefficient_{k:02d} = {0.25 * k:.4f}" for k in range(30))
+
+
 def test_nan_window_is_excluded(husky_df: pd.DataFrame, tmp_path: Path) -> None:
     df = husky_df.iloc[:20].copy()
     df.loc[df.index[4], "right_wheel_vel_10"] = np.nan
@@ -378,6 +397,9 @@ def test_full_husky_benchmark(husky_df: pd.DataFrame, tmp_path: Path) -> None:
         assert f"`{yi}` uses" in md and f"it {word}" in md.split(f"`{yi}` uses")[1].split("\n")[0]
     assert f"{meds[best]:.3f} m" in md and f"{meds['ideal_dd']:.3f} m" in md
     assert ("**Not met**" in md) == (not v["passed"])
+    from bench.report.cells import long_cells
+
+    assert long_cells(md) == []
 
 
 def test_testbed_chi_of_the_husky_model_matches_the_closed_form_at_pure_rotation():

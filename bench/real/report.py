@@ -13,6 +13,7 @@ from bench.real.chi import TESTBED_CHI_SCENARIO, WANG_P3AT, model_chi, wang_p3at
 from bench.real.drive import DriveWindows
 from bench.real.io import _atomic_write_text, _new_figure, _save_figure
 from bench.real.windows import MIN_TURN, WindowModel
+from bench.report.cells import CELL_LIMIT, cell
 
 SUBSETS = ("all", "steady", "transitory")
 
@@ -159,10 +160,16 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
     add("## Fitted models (calibration half)\n")
     add("| model | description | parameters |")
     add("|---|---|---|")
+    long_lists = []  # a parameter list too long for a table cell goes below the table, whole
     for mname, m in out["models"].items():
         ps = ", ".join(f"{k} = {_fmt(val, 4)}" for k, val in m["params"].items()) or "-"
-        add(f"| `{mname}` | {m['label']} | {ps} |")
+        if len(ps) > CELL_LIMIT:
+            long_lists.append(f"- `{mname}`: {ps}")
+            ps = "listed below the table"
+        add(f"| `{mname}` | {cell(m['label'])} | {ps} |")
     add("")
+    if long_lists:
+        L.extend(long_lists + [""])
     for err, unit, title in (("trans", "m", "Translation error at window end"),
                              ("yaw", "rad", "Yaw error at window end")):
         add(f"## {title} [{unit}], test half\n")

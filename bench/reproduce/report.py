@@ -18,11 +18,11 @@ No table cell is longer than :data:`CELL_LIMIT` characters: a longer text is sho
 from __future__ import annotations
 
 import json
-import re
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
+from bench.report.cells import CELL_LIMIT, cell, long_cells
 from bench.report.io import atomic_write_json, atomic_write_text, dumps_json
 from bench.reproduce.claims import _fmt, row_ratio
 from bench.reproduce.provenance import git_commit, package_versions
@@ -35,35 +35,7 @@ if TYPE_CHECKING:
 __all__ = ["CELL_LIMIT", "cell", "long_cells", "paper_markdown", "claims_details", "write_paper", "metrics_document",
            "claims_document", "write_report", "EXTRA_RESULTS", "link_extras", "append_history"]
 
-CELL_LIMIT = 300
 DETAILS = "claims_details.md"
-
-
-def cell(x: Any, more: str | None = None, limit: int = CELL_LIMIT) -> str:
-    """Markdown table cell of at most ``limit`` characters: pipes escaped, whitespace folded; a longer text is cut
-    at a sentence (or word) end and, with ``more``, followed by a link to the whole text."""
-    s = re.sub(r"\s+", " ", "" if x is None else str(x)).strip().replace("|", "\\|")
-    if len(s) <= limit:
-        return s
-    tail = f" … [more]({more})" if more else " …"
-    head = s[:limit - len(tail)]
-    stop = max(head.rfind(". "), head.rfind("; "))
-    if stop < len(head) // 2:
-        stop = head.rfind(" ")
-    if stop >= len(head) // 2:  # else one long word: a hard cut
-        head = head[:stop + 1]
-    if head.count("`") % 2:  # no code span left open
-        head = head[:head.rfind("`")]
-    return head.rstrip(" \\") + tail
-
-
-def long_cells(text: str, limit: int = CELL_LIMIT) -> list[str]:
-    """The cells of the markdown tables in ``text`` longer than ``limit`` characters."""
-    out = []
-    for line in text.splitlines():
-        if line.startswith("|"):
-            out += [c.strip() for c in re.split(r"(?<!\\)\|", line.strip().strip("|")) if len(c.strip()) > limit]
-    return out
 
 
 # ------------------------------------------------------------------------------------------ tables

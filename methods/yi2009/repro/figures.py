@@ -12,8 +12,9 @@ import numpy as np
 
 from bench.metrics import Trajectory, position_errors
 from bench.report.io import atomic_savefig, atomic_write_text
-from methods.yi2009.repro.evaluation import Evaluation, _evaluate
-from methods.yi2009.repro.settings import COLORS, PATH_LABELS, VARIANT_LABELS, VARIANTS
+from bench.reproduce import mean_ci
+from methods.yi2009.repro.evaluation import Evaluation, PathResult, _evaluate
+from methods.yi2009.repro.settings import COLORS, PATH_LABELS, SETTINGS, VARIANT_LABELS, VARIANTS
 from methods.yi2009.s_gamma import PUBLISHED_S_GAMMA, fit_s_gamma
 
 def fig3(ctx: Any) -> dict[str, float]:
@@ -157,10 +158,26 @@ def fig5_6(ctx: Any) -> dict[str, float]:
             lines.append(f"| {k} | {VARIANT_LABELS[v]} | {m:.4g} | [{lo:.4g}, {hi:.4g}] | {out[f'{k}.v{v}.rms_ref']:.4g} | "
                          f"{out[f'{k}.v{v}.final']:.4g} |")
         out[f"{k}.path_length"] = float(np.sum(np.hypot(np.diff(pr.run0["truth_x"]), np.diff(pr.run0["truth_y"]))))
+        out.update(order_margins(pr, k))
         _order_note(ctx, ev, k, out)
     atomic_write_text(ctx.out_dir / "fig5_6_intervals.md", "\n".join(lines) + "\n")
     _plot_fig5_6(ctx, ev)
     return out
+
+
+def paired_half_width(pr: PathResult, better: str, worse: str) -> float:
+    """Student-t 95 % half-width of the per-seed paired difference ``worse - better`` of the position RMS: the
+    seeds share the physics and differ in sensor noise only, so the pair's difference is what a seed changes."""
+    d = [b["rms"] - a["rms"] for a, b in zip(pr.scores[better], pr.scores[worse])]
+    m, lo, _ = mean_ci(d, SETTINGS.confidence)
+    return m - lo
+
+
+def order_margins(pr: PathResult, k: str) -> dict[str, float]:
+    """The ordering claims' margins on path ``k`` (Figs. 5-6): ``margin.v3_v1`` for scheme 3 < scheme 1 and
+    ``margin.order`` (the larger of the two adjacent pairs' half-widths) for 3 < 2 < 1."""
+    return {f"{k}.margin.v3_v1": paired_half_width(pr, "v3", "v1"),
+            f"{k}.margin.order": max(paired_half_width(pr, "v3", "v2"), paired_half_width(pr, "v2", "v1"))}
 
 
 def _order_note(ctx: Any, ev: Evaluation, k: str, out: Mapping[str, float]) -> None:
