@@ -4,6 +4,7 @@ hold; the result that would fail a claim; the checks of a declaration (errors na
 calibration targets from the parameter sources; numbers published on a real robot; the report's size and cells."""
 from __future__ import annotations
 
+import json
 import math
 import re
 import textwrap
@@ -439,3 +440,17 @@ def test_committed_results_have_no_table_cell_over_the_limit() -> None:
     assert files
     bad = {str(f.relative_to(root)): [c[:60] for c in long_cells(f.read_text())] for f in files}
     assert {k: v for k, v in bad.items() if v} == {}
+
+
+@pytest.mark.parametrize("name", ["claims.json", "quick/claims_quick.json"])
+def test_committed_failing_paper_claims_carry_a_cause(name: str) -> None:
+    """The shipped verdicts (results/ as committed): every paper claim that does not hold names its cause, of one of
+    the four kinds, with a text; a check beyond the paper never counts among them."""
+    path = Path(__file__).resolve().parents[1] / "results" / name
+    claims = json.loads(path.read_text())["claims"]
+    failing = {k: v for k, v in claims.items() if v["verdict"] == "does not hold" and v["scope"] == "paper"}
+    assert failing
+    bad = {k: v["cause"] for k, v in failing.items()
+           if not v["cause"] or v["cause"].get("kind") not in ("method", "testbed", "protocol", "paper")
+           or not v["cause"].get("text", "").strip()}
+    assert bad == {}
