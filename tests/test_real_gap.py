@@ -231,3 +231,24 @@ def test_bounded_run_holds_out_every_test_step() -> None:
 
     assert BOUNDED.n_test is None and FULL.n_test is None
     assert "every test-half step" in BOUNDED.describe()
+
+
+def test_steps_not_lowered_are_named_by_their_ids(gap_run: dict) -> None:
+    """The report names the held-out steps the final model does not lower (ties count as not lowered), by their
+    step ids in held-out order, and prints the quartiles it was given."""
+    import copy
+
+    from bench.real.gap_report import _markdown
+
+    doc = copy.deepcopy(gap_run["doc"])
+    steps = doc["held_out_steps"]
+    hc = doc["held_out"]["cost"]
+    assert len(steps) == len(hc["per_step"]) == 2
+    for ids, after in (([steps[1]], (0.5, 1.0)), (steps, (1.0, 1.0))):
+        for p, a in zip(hc["per_step"], after):
+            p["before"], p["after"] = 1.0, a
+        hc["ratio_quartiles"] = [0.125, 0.25, 0.375]
+        line = next(x for x in _markdown(doc, False, "x_gap").splitlines() if x.startswith("Per step"))
+        word = "step" if len(ids) == 1 else "steps"
+        assert line.endswith(f"not lowered on {word} {', '.join(map(str, ids))}."), line
+        assert "median 0.25 (quartiles 0.125-0.375)" in line, line

@@ -16,7 +16,7 @@ Protocol (:func:`run_real_gap`):
    ``husky`` platform on ``asphalt``, the measured commanded wheel speeds replayed by
    :func:`bench.gap.model.replay_scenario`): screening, fits and greedy selection over the effect
    catalogue; its own two-fold cross-validation runs inside the fit block.
-4. **Held-out scoring**: each test-half step (the first ``n_test`` when bounded; one Run per step, replayed
+4. **Held-out scoring**: each test-half step (the first ``n_test`` if a config sets it; one Run per step, replayed
    from its own measured initial state) is simulated with the nominal model and with the model the
    workflow ended with (named effects, or the partial candidates when it named nothing), and the
    residuals measured - model are pooled over those steps per channel (RMS [SI], normalised RMS)
@@ -325,7 +325,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("table", type=Path, nargs="?", default=data_root / "drive_husky" / "husky_windows.parquet")
     ap.add_argument("--out", type=Path, default=root / "results" / "real")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--full", action="store_true", help=f"unbounded run: {FULL.describe()}")
+    ap.add_argument("--full", action="store_true", help=f"three fit steps: {FULL.describe()}")
     ap.add_argument("--workers", type=int, default=None)
     a = ap.parse_args(argv)
     r = run_real_gap(a.table, a.out, a.seed, config=FULL if a.full else BOUNDED, workers=a.workers,

@@ -177,14 +177,16 @@ def order_margins(pr: PathResult, k: str) -> dict[str, float]:
     """The ordering claims' margins on path ``k`` (Figs. 5-6): ``margin.v3_v1`` for scheme 3 < scheme 1 and
     ``margin.order`` (the larger of the two adjacent pairs' half-widths) for 3 < 2 < 1."""
     return {f"{k}.margin.v3_v1": paired_half_width(pr, "v3", "v1"),
-            f"{k}.margin.order": max(paired_half_width(pr, "v3", "v2"), paired_half_width(pr, "v2", "v1"))}
+            f"{k}.margin.order": float(np.max([paired_half_width(pr, "v3", "v2"),  # NaN if either is
+                                               paired_half_width(pr, "v2", "v1")]))}
 
 
 def _order_note(ctx: Any, ev: Evaluation, k: str, out: Mapping[str, float]) -> None:
     """Explain the ordering verdicts of path k (claims order_k, superior_k, v3_rms_k) with measured numbers."""
     pr = ev.paths[k]
     vals = {v: out[f"{k}.v{v}"] for v in VARIANTS}
-    holds = vals[3] < vals[2] < vals[1]
+    margin = out[f"{k}.margin.order"]  # the order claim's margin (seeds' interval), as its verdict uses it
+    holds = vals[3] + margin < vals[2] and vals[2] + margin < vals[1]
     length = out[f"{k}.path_length"]
     parts = [", ".join(f"scheme {v}: {vals[v]:.3g} m [{out[f'{k}.v{v}.ci_lo']:.3g}, {out[f'{k}.v{v}.ci_hi']:.3g}]"
                        for v in VARIANTS) + f" (path {length:.1f} m, {len(ev.seeds)} seeds; scheme 3 "

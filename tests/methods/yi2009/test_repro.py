@@ -287,8 +287,8 @@ def test_gyro_roll_error_closed_form() -> None:
 
 def test_ordering_margin_is_the_paired_t_half_width() -> None:
     """fig5_6's ordering margins against scipy's paired t-test: the half-width h of the per-seed paired difference's
-    95 % interval is the mean difference over the t statistic times t_{0.975, n-1}; an ordering whose mean gap is
-    inside h (here scheme 3 ahead of scheme 1 by 0.0036 m, as on the '8') does not hold with the margin."""
+    95 % interval is the mean difference over the t statistic times t_{0.975, n-1}; the claims engine's ordering with
+    that margin does not hold for a mean gap inside h (scheme 3 ahead of scheme 1 by a few mm, as on the '8')."""
     from methods.yi2009.repro.evaluation import PathResult
     from methods.yi2009.repro.figures import order_margins
 
@@ -308,3 +308,9 @@ def test_ordering_margin_is_the_paired_t_half_width() -> None:
     assert m["figure8.margin.order"] == pytest.approx(max(abs(half(v3, v2)), abs(half(v2, v1))), rel=1e-9)
     gap = np.mean(v1) - np.mean(v3)
     assert 0 < gap < m["figure8.margin.v3_v1"]  # ahead on the means, inside the seeds' interval
+    from bench.reproduce.claims import evaluate_claim
+
+    claim = {"id": "c", "text": "t", "kind": "ordering", "metrics": ["a", "b"], "margin": "m"}
+    metrics = {"a": float(np.mean(v3)), "b": float(np.mean(v1)), "m": m["figure8.margin.v3_v1"]}
+    assert evaluate_claim(claim, metrics)[0] is False
+    assert evaluate_claim(claim, {**metrics, "m": 0.0})[0] is True  # without the margin it would hold
