@@ -101,9 +101,9 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])} -> final {_g(hc['after_mean'])}{share} "
         f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
         f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
-    worse = [str(s) for s, c in zip(doc["held_out_steps"], hc["per_step"]) if not c["after"] < c["before"]]
     if "ratio_quartiles" in hc:
         q = hc["ratio_quartiles"]
+        worse = [str(s) for s, c in zip(doc["held_out_steps"], hc["per_step"]) if not c["after"] < c["before"]]
         add(f"Per step, final / nominal cost: median {_g(q[1], 3)} (quartiles {_g(q[0], 3)}-{_g(q[2], 3)}); "
             + (f"not lowered on step{'s' if len(worse) > 1 else ''} {', '.join(worse)}.\n" if worse
                else "lowered on every step.\n"))

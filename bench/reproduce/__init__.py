@@ -64,8 +64,8 @@ from typing import Callable
 from bench.report.io import atomic_write_json
 from bench.reproduce.claims import (CAUSE_KINDS, CLAIM_KINDS, SCOPES, VERDICTS, claim_metric_ids, evaluate_claim,
                                     fails_if, row_verdict, verdict)
-from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, claim_result, list_papers, load_paper,
-                                   mean_ci, published_values, reproduce_paper)
+from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, claim_result, half_width, list_papers,
+                                   load_paper, mean_ci, published_values, reproduce_paper)
 from bench.reproduce.provenance import code_key, git_commit, package_versions
 from bench.reproduce.report import (EXTRA_RESULTS, EXTRAS_BEGIN, EXTRAS_END, append_history, claims_document,
                                     link_extras, metrics_document, paper_markdown, write_documents, write_paper,
@@ -76,7 +76,7 @@ from bench.reproduce.sources import calibration_targets, parameter_sources
 __all__ = [
     "reproduce", "check_declarations", "PAPER_COST_ORDER", "CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "VERDICTS", "claim_metric_ids",
     "evaluate_claim", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
-    "claim_result", "list_papers", "load_paper", "mean_ci", "published_values", "reproduce_paper", "code_key",
+    "claim_result", "half_width", "list_papers", "load_paper", "mean_ci", "published_values", "reproduce_paper", "code_key",
     "git_commit", "package_versions", "EXTRA_RESULTS", "EXTRAS_BEGIN", "EXTRAS_END", "append_history",
     "claims_document", "link_extras", "metrics_document", "paper_markdown", "write_documents", "write_paper",
     "write_report", "REPO", "Runner", "calibration_targets", "parameter_sources",

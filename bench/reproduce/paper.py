@@ -141,6 +141,13 @@ def mean_ci(values: Any, confidence: float = 0.95) -> tuple[float, float, float]
     return m, m - half, m + half
 
 
+def half_width(values: Any, confidence: float = 0.95) -> float:
+    """Half-width of :func:`mean_ci`'s interval, mean - lower bound (NaN for < 2 values): the margin of an ordering
+    over seeds when ``values`` are the per-seed paired differences."""
+    m, lo, _ = mean_ci(values, confidence)
+    return m - lo
+
+
 def list_papers() -> list[str]:
     return sorted(p.stem for p in PAPERS_DIR.glob("*.toml"))
 

@@ -6,7 +6,7 @@ Two compute functions of ``scenarios/papers/mandow2007.toml`` (re-exported by :m
     The GA of Sec. III (the plugin ``mandow2007.asymmetric_ga``, the mode's settings) identifies K on each
     calibration path ALONE (``Settings.interval_seeds``; quick: the 30 s paths), so that every condition has one K
     per seed.  Per condition: the mean over seeds and the half-width of its 95 % Student-t interval
-    (:func:`bench.reproduce.mean_ci`).  Each comparative statement of Sec. IV-C is a paired difference per seed
+    (:func:`bench.reproduce.half_width`).  Each comparative statement of Sec. IV-C is a paired difference per seed
     (the same seed draws the same joystick path on every terrain and tire): its mean is the difference of the
     compared means and the half-width of its 95 % interval is the claim's margin.
 
@@ -25,18 +25,12 @@ import numpy as np
 
 from bench import registry
 from bench.metrics import Trajectory, position_rms
-from bench.reproduce import mean_ci
+from bench.reproduce import half_width
 
 __all__ = ["half_width", "paired_statistics", "indexes", "validation", "INDEX_NAMES"]
 
 INDEX_NAMES = ("y_icr_v", "chi", "e", "alpha_dev")
 _SEEDS_KEY = "_mandow2007_seed_identifications"
-
-
-def half_width(values: Sequence[float]) -> float:
-    """Half-width of the two-sided 95 % Student-t interval of the mean (NaN for fewer than 2 values)."""
-    m, lo, _ = mean_ci(list(values))
-    return m - lo
 
 
 def paired_statistics(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:

@@ -12,7 +12,7 @@ import numpy as np
 
 from bench.metrics import Trajectory, position_errors
 from bench.report.io import atomic_savefig, atomic_write_text
-from bench.reproduce import mean_ci
+from bench.reproduce import half_width
 from methods.yi2009.repro.evaluation import Evaluation, PathResult, _evaluate
 from methods.yi2009.repro.settings import COLORS, PATH_LABELS, SETTINGS, VARIANT_LABELS, VARIANTS
 from methods.yi2009.s_gamma import PUBLISHED_S_GAMMA, fit_s_gamma
@@ -168,9 +168,7 @@ def fig5_6(ctx: Any) -> dict[str, float]:
 def paired_half_width(pr: PathResult, better: str, worse: str) -> float:
     """Student-t 95 % half-width of the per-seed paired difference ``worse - better`` of the position RMS: the
     seeds share the physics and differ in sensor noise only, so the pair's difference is what a seed changes."""
-    d = [b["rms"] - a["rms"] for a, b in zip(pr.scores[better], pr.scores[worse])]
-    m, lo, _ = mean_ci(d, SETTINGS.confidence)
-    return m - lo
+    return half_width([b["rms"] - a["rms"] for a, b in zip(pr.scores[better], pr.scores[worse])], SETTINGS.confidence)
 
 
 def order_margins(pr: PathResult, k: str) -> dict[str, float]:
