@@ -426,3 +426,23 @@ def test_import_csv_refuses_drop_stale_with_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "drop_stale" in err[0] and "skidbench real" in err[0]
     assert not (tmp_path / "r.parquet").exists()
+
+
+def test_real_gap_without_the_steady_stage(clean, tmp_path):
+    """--no-steady: no command response in the JSON or the report, the simulation starts from the nominal model (the
+    held-out scoring has no start model); with it, the JSON says what the steady windows gave."""
+    docs = {}
+    for flag in ([], ["--no-steady"]):
+        out = tmp_path / ("gap" + "".join(flag))
+        assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
+                     "--json", str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1", *flag]) == 0
+        docs[bool(flag)] = (json.loads((tmp_path / "g.json").read_text()), (out / "robot_x-bigbot_gap.md").read_text())
+    (on, md_on), (off, md_off) = docs[False], docs[True]
+    assert off["command_response"] is None and "Steady command response" not in md_off
+    assert off["bounds"]["steady"] is False and on["bounds"]["steady"] is True
+    assert "start_mean" not in off["held_out"]["cost"]
+    cr = on["command_response"]
+    assert cr["n_windows"] > 0 and "Steady command response" in md_on
+    # this robot's wheels settle on their command (a first-order lag, no controller map): nothing is adopted, the
+    # simulation starts from the nominal model as without the stage
+    assert cr["adopted"] == [] and cr["platform_overrides"] == {} and "start_mean" not in on["held_out"]["cost"]

@@ -114,6 +114,9 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
                         "state (bench.gap.segments), instead of the first consecutive ones as one run")
     p.add_argument("--max-effects", type=count(1), default=None, metavar="K", help="effects selected at most "
                    "(default 2)")
+    p.add_argument("--no-steady", action="store_true",
+                   help="skip the first stage, the steady command response identified on the calibration half's "
+                        "steady windows (bench.real.command_response): the simulation starts from the nominal model")
     p.add_argument("--workers", type=count(1), default=None)
 
 
@@ -128,6 +131,8 @@ def _real_gap(a: argparse.Namespace) -> int:
         config = dataclasses.replace(config, n_fit=a.fit_steps, separate=True)
     if a.max_effects is not None:
         config = dataclasses.replace(config, max_effects=a.max_effects)
+    if a.no_steady:
+        config = dataclasses.replace(config, steady=False)
     r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=config,
                      workers=a.workers, label=label)
     ho = r["doc"]["held_out"]["cost"]

@@ -12,6 +12,7 @@ import numpy as np
 from bench.gap import GapResult
 from bench.gap.report import STDERR_NOTE, change_text, uncertainty_text
 from bench.gap.residuals import UNITS
+from bench.real.command_response import CHI2_ADOPT, MIN_BEYOND, MIN_WINDOWS
 from bench.real.held_out import MIN_REGIME_SHARE
 from bench.real.io import _new_figure, _save_figure
 
@@ -48,7 +49,11 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     f = doc["data_facts"]
     add(f"- Commanded wheel speeds reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s, measured ones never exceed "
         f"{f['max_abs_enc_wheel_speed']:.2f} rad/s.\n")
+    L.extend(_steady_section(doc.get("command_response")))
     add("## What the workflow names (fit block)\n")
+    if doc.get("command_response") and doc["command_response"]["adopted"]:
+        add("The simulation starts from the nominal model with the steady command response above; its "
+            "\"nominal\" below is that model.\n")
     add(f"**Verdict:** {wf['verdict']}\n")
     c = wf["cost"]
     add(f"Cost (weighted normalised mean square; sensor noise alone ~ {_g(c['j_noise'], 3)}): nominal "
@@ -98,7 +103,11 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     hc = ho["cost"]
     share = (f" ({100 * hc['after_mean'] / hc['before_mean']:.1f} % of the nominal)" if hc["before_mean"] > 0
              else "")
-    add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])} -> final {_g(hc['after_mean'])}{share} "
+    steady = ""
+    if "start_mean" in hc and hc["before_mean"] > 0:
+        steady = (f" -> steady command response alone {_g(hc['start_mean'])} "
+                  f"({100 * hc['start_mean'] / hc['before_mean']:.1f} %, lower on {hc['steps_improved_start']} steps)")
+    add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])}{steady} -> final {_g(hc['after_mean'])}{share} "
         f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
         f"{hc['steps_improved']} of {hc['n_steps']} held-out steps.\n")
     if "ratio_quartiles" in hc:
@@ -134,6 +143,34 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     return "\n".join(L)
 
 
+def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
+    """The first stage: the steady command response (bench.real.command_response), or nothing when it did not run."""
+    if not cr:
+        return []
+    out = ["## Steady command response (calibration half, steady windows)\n",
+           "The robot's own velocity controller between the logged command and the wheels, identified without "
+           "simulation from the window means of the calibration half's steady windows (`bench.real.command_response`: "
+           "a gain on the mean wheel speed, one on the half-difference, a clip of the half-difference, both sides "
+           "scaled so the faster wheel stays within a limit).  A parameter is adopted when leaving it at its neutral "
+           f"value raises the residual sum of squares by more than {CHI2_ADOPT:g} x its variance (p = 0.001), a "
+           f"limit also only when at least {MIN_BEYOND} windows ask for more; what is adopted is part of the model "
+           "the simulation starts from and is not refitted there.\n"]
+    if cr["n_windows"] < MIN_WINDOWS:
+        out.append(f"Only {cr['n_windows']} steady windows (fewer than {MIN_WINDOWS}): nothing identified.\n")
+        return out
+    out += ["| parameter | fitted | std. error | windows beyond the limit | adopted |", "|---|---:|---:|---:|---|"]
+    unit = {"gain_sum": "-", "gain_diff": "-", "limit_diff": "rad/s", "wheel_limit": "rad/s"}
+    for k, v in cr["parameters"].items():
+        adopted = k in cr["adopted"]
+        out.append(f"| {k} [{unit.get(k, '')}] | {_g(v, 5) if adopted else 'off'} | "
+                   f"{_g(cr['stderr'][k], 2) if adopted else '-'} | {cr['n_beyond'].get(k, '-')} | "
+                   f"{'yes' if adopted else 'no'} |")
+    out.append(f"\nSteady wheel speeds, RMS measured - model over {cr['n_windows']} windows: "
+               f"{_g(cr['rms_before'], 3)} rad/s (the command as the reference) -> {_g(cr['rms_after'], 3)} rad/s. "
+               "Standard errors treat the windows as independent (two per command step: they are not quite).\n")
+    return out
+
+
 def _reading(doc: Mapping[str, Any]) -> list[str]:
     """Sentences derived from the numbers (none written by hand)."""
     wf, ho = doc["workflow"], doc["held_out"]
@@ -167,12 +204,14 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
                f"{f['max_abs_cmd_yaw_rate_ideal']:.2f} rad/s (ideal differential drive)" if "max_abs_gyro_rate" in f
                else "")
             + ". The robot's own velocity controller sits between the logged command and the wheels; the "
-            "catalogue models it with command_map (gains on the commanded mean and half-difference) and "
-            "command_limit (clipping of both), added after the first run of this workflow on these data named "
-            "nothing (that diagnosis, these slopes, uses all steady windows, the test half included, so the held-out "
-            "improvement below is not fully independent of the held-out steps); "
-            + (f"kept here: {', '.join(k for k in kept if k.startswith('command_'))}."
-               if any(k.startswith("command_") for k in kept) else "neither was kept here.")
+            "catalogue models it with command_map (gains on the commanded mean and half-difference), "
+            "command_limit (clipping of both) and wheel_speed_limit, added after the first run of this workflow on "
+            "these data named nothing (that diagnosis, these slopes, uses all steady windows, the test half included); "
+            + ("here the steady command response identified it on the calibration half alone: "
+               f"{', '.join(doc['command_response']['adopted'])}."
+               if doc.get("command_response") and doc["command_response"]["adopted"] else
+               (f"kept here: {', '.join(k for k in kept if k.startswith('command_'))}."
+                if any(k.startswith("command_") for k in kept) else "none was kept here."))
             + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "
             "tables.")
     return out

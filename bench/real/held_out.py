@@ -29,27 +29,38 @@ def final_config(res: GapResult, scn: Any) -> ModelConfig:
     return cfg
 
 
-def step_residuals(run: Run, scenario: Any, res: GapResult) -> dict[str, Any]:
+def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None) -> dict[str, Any]:
     """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
     noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
-    alignment as inside the workflow)."""
+    alignment as inside the workflow).  ``start``: the scenario the workflow started from when it is not the
+    nominal ``scenario`` (the steady command response of :mod:`bench.real.command_response` applied); the final
+    model is then ``res`` on top of it, each model replayed from the initial state it settles on, and the start
+    model's own cost is ``cost["start"]``."""
     run = run.without_truth()
-    rscn, init = replay_scenario(run, scenario)
     space = build_space(run, regimes_for(scenario.platform))
-    grid = measured_grid(run, space.t, init, scenario)
-    ev = Evaluator(rscn, grid, space, testbed_trace, workers=1)
     out: dict[str, Any] = {"space": space, "cost": {}, "raw": {}}
-    for key, cfg in (("before", nominal_config(rscn)), ("after", final_config(res, rscn))):
-        sig = ev.signals(cfg)
-        out["raw"][key] = space.raw(sig)
+    models = [("before", scenario, False)]
+    if start is not None:
+        models.append(("start", start, False))
+    models.append(("after", scenario if start is None else start, True))
+    evs: dict[int, tuple[Any, Evaluator]] = {}
+    for key, scn, final in models:
+        if id(scn) not in evs:
+            rscn, init = replay_scenario(run, scn)
+            evs[id(scn)] = (rscn, Evaluator(rscn, measured_grid(run, space.t, init, scn), space, testbed_trace,
+                                            workers=1))
+        rscn, ev = evs[id(scn)]
+        sig = ev.signals(final_config(res, rscn) if final else nominal_config(rscn))
+        if key != "start":
+            out["raw"][key] = space.raw(sig)
         out["cost"][key] = space.cost(sig)
     out["j_noise"] = space.j_noise
     return out
 
 
-def wheel_series(run: Run, scenario: Any, res: GapResult) -> dict[str, dict[str, np.ndarray]]:
+def wheel_series(run: Run, scenario: Any, res: GapResult, start: Any = None) -> dict[str, dict[str, np.ndarray]]:
     """For the figure: commanded, measured, nominal-model and final-model wheel speeds of ``run``."""
-    r = step_residuals(run, scenario, res)
+    r = step_residuals(run, scenario, res, start)
     sp = r["space"]
     out = {}
     for c, cmd in (("enc_wl", "cmd_wl"), ("enc_wr", "cmd_wr")):
@@ -127,6 +138,7 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
     worst = max(pool, key=lambda k: pool[k]["excess_after"]) if pool else None
     cost_b = [s["cost"]["before"] for s in steps]
     cost_a = [s["cost"]["after"] for s in steps]
+    cost_s = [s["cost"]["start"] for s in steps if "start" in s["cost"]]
     jn = [s["j_noise"] for s in steps]
     ratio = np.array([a / b if b > 0 else math.nan for a, b in zip(cost_a, cost_b)])
     q = np.nanquantile(ratio, [0.25, 0.5, 0.75]) if np.isfinite(ratio).any() else np.full(3, math.nan)
@@ -136,5 +148,8 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
                  "j_noise_mean": float(np.mean(jn)),
                  "steps_improved": int(sum(a < b for a, b in zip(cost_a, cost_b))), "n_steps": len(steps),
                  "ratio_quartiles": [float(v) for v in q],  # of final / nominal per step
+                 **({"start_mean": float(np.mean(cost_s)),
+                     "steps_improved_start": int(sum(a < b for a, b in zip(cost_s, cost_b)))}
+                    if cost_s and len(cost_s) == len(steps) else {}),
                  "per_step": [{"before": b, "after": a, "j_noise": j} for b, a, j in zip(cost_b, cost_a, jn)]},
     }

@@ -1,0 +1,137 @@
+"""Tests of bench.real.command_response: the steady command response identified from steady windows.
+
+Independent expectations: the map's parameters that generated the synthetic windows (written out here stage by
+stage, not with the module's own ``steady_map``), the testbed's own reference stage
+(:func:`bench.sim.testbed._references`, a second implementation of the same map), and the null case of wheels
+that track their command.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from bench.real.command_response import (MIN_BEYOND, MIN_WINDOWS, STEADY_EFFECTS, identify_command_response,
+                                         steady_map)
+from bench.real.drive import DriveWindows
+from bench.spec import CommandSpec, Segment, load_scenario, replace
+
+N_SAMPLES = 40
+
+
+def _windows(u_l: np.ndarray, u_r: np.ndarray, y_l: np.ndarray, y_r: np.ndarray, noise: float, seed: int = 0,
+             steady: np.ndarray | None = None) -> DriveWindows:
+    """One window per command, constant command, measured = y + white noise of ``noise`` rad/s per sample."""
+    rng = np.random.default_rng(seed)
+    n = u_l.size
+    rep = lambda x: np.repeat(x[:, None], N_SAMPLES, axis=1)  # noqa: E731
+    ch = {"cmd_wl": rep(u_l), "cmd_wr": rep(u_r),
+          "enc_wl": rep(y_l) + noise * rng.standard_normal((n, N_SAMPLES)),
+          "enc_wr": rep(y_r) + noise * rng.standard_normal((n, N_SAMPLES))}
+    st = np.ones(n, bool) if steady is None else steady
+    return DriveWindows(source="synthetic", dt=0.05, channels=ch, calib_step=np.arange(n) // 2,
+                        calib_step_label=np.arange(n) // 2, window=np.arange(n) % 2, steady=st,
+                        transitory=~st, overlap=np.zeros(n, int), frame_yaw=np.zeros(n), row=np.arange(n))
+
+
+def _robot(u_l, u_r, g_sum, g_diff, lim_diff, wheel_lim):
+    """The map written out by hand: gains, the half-difference clipped, then both sides scaled by one factor so that
+    the faster is at the wheel limit."""
+    mean = g_sum * (u_l + u_r) / 2
+    half = np.clip(g_diff * (u_r - u_l) / 2, -lim_diff, lim_diff)
+    l, r = mean - half, mean + half
+    k = np.minimum(1.0, wheel_lim / np.maximum(np.abs(l), np.abs(r)))
+    return l * k, r * k
+
+
+def _commands(n: int, top: float, seed: int = 1):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(-top, top, n), rng.uniform(-top, top, n)
+
+
+def test_a_known_map_is_recovered_within_its_standard_errors():
+    truth = {"gain_sum": 1.8, "gain_diff": 0.8, "limit_diff": 3.0, "wheel_limit": 6.0}
+    u_l, u_r = _commands(200, 12.0)
+    y_l, y_r = _robot(u_l, u_r, truth["gain_sum"], truth["gain_diff"], truth["limit_diff"], truth["wheel_limit"])
+    cr = identify_command_response(_windows(u_l, u_r, y_l, y_r, noise=0.3))
+    assert set(cr.adopted) == set(truth)
+    for k, v in truth.items():
+        assert abs(cr.parameters[k] - v) < 4 * cr.stderr[k] + 1e-9, (k, cr.parameters[k], cr.stderr[k])
+        assert cr.stderr[k] < 0.05 * v
+    assert cr.rms_after < 0.1 < 1.0 < cr.rms_before  # window means of 40 samples: noise 0.3 / sqrt(40) = 0.05
+    assert cr.overrides() == pytest.approx({"command_gain_sum": cr.parameters["gain_sum"],
+                                            "command_gain_diff": cr.parameters["gain_diff"],
+                                            "command_limit_diff": cr.parameters["limit_diff"],
+                                            "wheel_speed_limit": cr.parameters["wheel_limit"]})
+
+
+def test_wheels_that_track_their_command_get_the_nominal_map_back():
+    u_l, u_r = _commands(200, 5.0, seed=3)
+    for seed in range(20):
+        cr = identify_command_response(_windows(u_l, u_r, u_l, u_r, noise=0.3, seed=seed))
+        assert cr.overrides() == {} and cr.adopted == (), (seed, cr)
+        assert all(math.isinf(cr.parameters[k]) for k in ("limit_diff", "wheel_limit"))
+        assert cr.parameters["gain_sum"] == cr.parameters["gain_diff"] == 1.0
+
+
+def test_a_limit_too_few_windows_reach_is_not_adopted():
+    u_l, u_r = _commands(200, 4.0, seed=4)
+    u_l[:MIN_BEYOND - 1] = [-9.0, 9.0][: MIN_BEYOND - 1]  # fewer than MIN_BEYOND windows turn beyond 5 rad/s
+    u_r[:MIN_BEYOND - 1] = [9.0, -9.0][: MIN_BEYOND - 1]
+    y_l, y_r = _robot(u_l, u_r, 1.5, 1.0, 5.0, math.inf)
+    cr = identify_command_response(_windows(u_l, u_r, y_l, y_r, noise=0.1))
+    assert "limit_diff" not in cr.adopted and cr.n_beyond.get("limit_diff", 0) < MIN_BEYOND
+    assert "gain_sum" in cr.adopted and cr.parameters["gain_sum"] == pytest.approx(1.5, abs=0.01)
+    # the same limit reached by enough windows is adopted
+    u_l[:MIN_BEYOND + 2], u_r[:MIN_BEYOND + 2] = -9.0, 9.0
+    y_l, y_r = _robot(u_l, u_r, 1.5, 1.0, 5.0, math.inf)
+    cr = identify_command_response(_windows(u_l, u_r, y_l, y_r, noise=0.1))
+    assert "limit_diff" in cr.adopted and cr.parameters["limit_diff"] == pytest.approx(5.0, abs=0.05)
+    assert cr.adopted == ("gain_sum", "limit_diff")
+
+
+def test_only_steady_windows_of_the_given_steps_count():
+    u_l, u_r = _commands(200, 5.0, seed=5)
+    y_l, y_r = _robot(u_l, u_r, 1.3, 0.7, math.inf, math.inf)
+    steady = np.ones(200, bool)
+    steady[::2] = False
+    w = _windows(u_l, u_r, y_l, y_r, noise=0.1, steady=steady)
+    w.channels["enc_wl"][~steady] = 99.0  # transitory windows: wrong on purpose, never read
+    cr = identify_command_response(w, steps=range(50))
+    assert cr.n_windows == 50 and cr.parameters["gain_sum"] == pytest.approx(1.3, abs=0.01)
+    few = identify_command_response(w, steps=range(MIN_WINDOWS - 1))
+    assert few.n_windows == MIN_WINDOWS - 1 and few.adopted == ()
+
+
+def test_the_steady_map_is_the_testbeds_own_reference_stage():
+    """steady_map against bench.sim.testbed._references (the PID's references): a constant command, the platform's
+    gains and limits set, the last reference equals the map."""
+    from bench.sim.testbed import _references
+
+    base = load_scenario("real_husky_asphalt")
+    theta = {"gain_sum": 1.7, "gain_diff": 0.6, "limit_diff": 2.5, "wheel_limit": 5.5}
+    plat = replace(base.platform, command_gain_sum=1.7, command_gain_diff=0.6, command_limit_diff=2.5,
+                   wheel_speed_limit=5.5)
+    for u_l, u_r in ((2.0, 3.0), (-4.0, 6.0), (7.0, 6.5), (-1.0, -8.0)):
+        cmd = CommandSpec(kind="wheel_speeds", units="rad/s", segments=(Segment(5.0, u_l, u_r),), accel=math.inf)
+        scn = dataclasses.replace(base, platform=plat, command=cmd, duration=1.0)
+        ref_l, ref_r = _references(scn, 0, 100)
+        m_l, m_r = steady_map(theta, np.array([u_l]), np.array([u_r]))
+        assert (ref_l[-1], ref_r[-1]) == pytest.approx((m_l[0], m_r[0]), rel=1e-12)
+
+
+def test_the_steady_effects_are_the_catalogues_effects_on_those_fields():
+    """The simulation stage leaves out STEADY_EFFECTS: they, and no other catalogue effect, write the platform
+    fields the steady map sets."""
+    from bench.gap.catalogue import CATALOGUE
+
+    u_l, u_r = _commands(100, 12.0)
+    y_l, y_r = _robot(u_l, u_r, 1.8, 0.8, 3.0, 6.0)
+    fields = {f"platform.{k}" for k in identify_command_response(_windows(u_l, u_r, y_l, y_r, 0.1)).overrides()}
+    assert len(fields) == 4
+    scn = load_scenario("real_husky_asphalt")
+    writes = {e.name: set(e._spec(scn, tuple(p.lower for p in e.params))) for e in CATALOGUE}
+    assert fields <= set().union(*(writes[n] for n in STEADY_EFFECTS))
+    assert not [n for n, w in writes.items() if n not in STEADY_EFFECTS and w & fields]
