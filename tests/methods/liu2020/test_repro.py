@@ -149,6 +149,14 @@ def test_claim_metrics_are_consistent(repro):
         assert lo <= m[f"table2.{k}.mi_ukf"] <= hi
     gm = math.exp(np.mean([math.log(m[f"table2.{k}.mi_ukf"]) for k in ("s1", "s2", "s3")]))
     assert m["table2.gmean.mi_ukf"] == pytest.approx(gm, rel=1e-12)
+    # the summary claims' worst scenario: the largest of the three ratios, and its own two RMS values
+    for pre, a, b in (("table2.", "icr", "en_dr"), ("table2.", "mi_ukf", "ukf_icr"), ("table2_gnss.", "mi_ukf", "ukf_icr"),
+                      ("table2.nodrift.", "mi_ukf", "ukf_icr")):
+        ratios = [m[f"{pre}{k}.{a}"] / m[f"{pre}{k}.{b}"] for k in ("s1", "s2", "s3")]
+        w = f"{pre}worst_{a}_{b}"
+        k = int(m[f"{w}.scenario"])
+        assert ratios[k - 1] == max(ratios)
+        assert (m[f"{w}.{a}"], m[f"{w}.{b}"]) == (m[f"{pre}s{k}.{a}"], m[f"{pre}s{k}.{b}"])
     assert m["heading.truth_crossings"] >= 1
     assert m["outage.gnss_fixes_in_outage"] == 0.0
     assert m["outage.ukf_icr.nan_count"] == 0.0 and m["outage.mi_ukf.nan_count"] == 0.0
