@@ -135,3 +135,29 @@ def test_the_steady_effects_are_the_catalogues_effects_on_those_fields():
     writes = {e.name: set(e._spec(scn, tuple(p.lower for p in e.params))) for e in CATALOGUE}
     assert fields <= set().union(*(writes[n] for n in STEADY_EFFECTS))
     assert not [n for n, w in writes.items() if n not in STEADY_EFFECTS and w & fields]
+
+
+def test_the_callers_windows_are_not_changed_and_each_half_is_read_alone():
+    """Identifying on one half leaves the windows as they were: the other half still has its steady windows."""
+    u_l, u_r = _commands(200, 5.0, seed=6)
+    y_l, y_r = _robot(u_l, u_r, 1.3, 0.7, math.inf, math.inf)
+    w = _windows(u_l, u_r, y_l, y_r, noise=0.1)
+    before = w.steady.copy()
+    first = identify_command_response(w, steps=range(50))
+    assert np.array_equal(w.steady, before)
+    second = identify_command_response(w, steps=range(50, 100))
+    assert first.n_windows == second.n_windows == 100
+
+
+def test_the_identified_map_replaces_the_platforms_whole_map():
+    """fields(): adopted values, neutral ones where nothing was adopted, no mean clip; nothing with too few windows."""
+    u_l, u_r = _commands(200, 12.0)
+    y_l, y_r = _robot(u_l, u_r, 1.4, 1.0, math.inf, 6.0)
+    cr = identify_command_response(_windows(u_l, u_r, y_l, y_r, noise=0.1))
+    assert set(cr.adopted) == {"gain_sum", "wheel_limit"}
+    assert cr.fields() == {"command_limit_mean": math.inf, "command_gain_sum": cr.parameters["gain_sum"],
+                           "command_gain_diff": 1.0, "command_limit_diff": math.inf,
+                           "wheel_speed_limit": cr.parameters["wheel_limit"]}
+    few = identify_command_response(_windows(u_l[:MIN_WINDOWS - 1], u_r[:MIN_WINDOWS - 1], y_l[:MIN_WINDOWS - 1],
+                                             y_r[:MIN_WINDOWS - 1], noise=0.1))
+    assert few.fields() == {}

@@ -446,3 +446,19 @@ def test_real_gap_without_the_steady_stage(clean, tmp_path):
     # this robot's wheels settle on their command (a first-order lag, no controller map): nothing is adopted, the
     # simulation starts from the nominal model as without the stage
     assert cr["adopted"] == [] and cr["platform_overrides"] == {} and "start_mean" not in on["held_out"]["cost"]
+
+
+def test_the_steady_stage_replaces_a_platforms_own_command_map(clean, tmp_path):
+    """A platform TOML with its own command gain and mean clip, on a robot whose wheels settle on their command: the
+    steady windows ask for neither, so the model the simulation starts from has them back at neutral (the map the
+    windows were fitted with), and the JSON says what was changed."""
+    p = _platform_toml(tmp_path)
+    text = p.read_text().replace("\n[motor]", "\ncommand_gain_sum = 1.2\ncommand_limit_mean = 3.0\n\n[motor]", 1)
+    text = text.replace("\n[sources]\n", '\n[sources]\ncommand_gain_sum = {kind = "testbed", ref = "test"}\n'
+                        'command_limit_mean = {kind = "testbed", ref = "test"}\n', 1)
+    p.write_text(text)
+    assert main(["real-gap", str(clean[0]), "--platform", str(p), "--out", str(tmp_path / "gap"), "--json",
+                 str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1"]) == 0
+    cr = json.loads((tmp_path / "g.json").read_text())["command_response"]
+    assert cr["adopted"] == [] and cr["applied"] == {"command_gain_sum": 1.0, "command_limit_mean": None}
+    assert cr["catalogue_without"] == ["command_map", "command_limit", "wheel_speed_limit"]

@@ -9,6 +9,7 @@ Runs), with the spec overrides the workflow reports for its effects.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -115,13 +116,13 @@ def test_named_or_not_is_consistent(gap_run: dict) -> None:
 def test_held_out_residuals_recomputed(gap_run: dict, slice30: Path) -> None:
     """The held-out gyro and encoder gaps before/after, recomputed independently, match the report;
     the channels the report says the fitted model improves are improved in the recomputation.  The final model is
-    the steady command response's platform fields (the JSON's ``platform_overrides``) with the effects on top, replayed
+    the steady command response's platform fields (the JSON's ``applied``: what it changed in the platform) with the effects on top, replayed
     from the initial state that model settles on."""
     doc = gap_run["doc"]
     wf = doc["workflow"]
     runs = {r.meta["calib_step"]: r for r in import_drive(slice30, "husky")}
     scn = load_scenario(SCENARIO)
-    steady = doc["command_response"]["platform_overrides"]
+    steady = {k: (math.inf if v is None else v) for k, v in doc["command_response"]["applied"].items()}
     scn_after = replace(scn, platform=replace(scn.platform, **steady)) if steady else scn
     kept = wf["effects"] + wf["partial_candidates"]
     over, enc, bias, gain, lat = {}, [0.0, 0.0], 0.0, 1.0, 0.0

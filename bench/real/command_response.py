@@ -23,7 +23,12 @@ elimination, one parameter at a time, each time refitting the rest):
 - each parameter only when leaving it at its neutral value (gain 1, no limit) raises the residual sum of squares by
   more than :data:`CHI2_ADOPT` times the residual variance (a likelihood-ratio test with one degree of freedom at
   p = 0.001; the windows are taken as independent, which two windows per command step are not quite, hence the
-  strict level).  A steady response cannot tell a controller's
+  strict level).  For a limit the level is nominal only ("no limit" sits on the boundary and the limit's location
+  is fitted, so the statistic is not chi2(1)); :data:`MIN_BEYOND` is what keeps a limit from being fitted to noise
+  (a null calibration of 400 seeds x 200 windows adopted something in 0.5 % of them).
+With enough steady windows (:data:`MIN_WINDOWS`) the identified map replaces the platform's own map entirely
+(:meth:`CommandResponse.fields`: what is not adopted goes back to neutral, and the mean clip, which the steady map
+does without, to none), so that the model the simulation starts from is the map the windows were fitted with.  A steady response cannot tell a controller's
 clip from a drive that cannot go faster: both are a ceiling on the steady wheel speeds, which is what is modelled.
 """
 from __future__ import annotations
@@ -84,6 +89,14 @@ class CommandResponse:
         """Platform fields of the adopted parameters (``{}``: the nominal map)."""
         return {_PARAMS[k][0]: float(self.parameters[k]) for k in self.adopted}
 
+    def fields(self) -> dict[str, float]:
+        """Every platform field of the robot's command map as identified (neutral where not adopted, no mean clip),
+        ``{}`` when there were too few steady windows to identify anything."""
+        if self.n_windows < MIN_WINDOWS:
+            return {}
+        return {"command_limit_mean": math.inf, **{f: float(self.parameters[k]) if k in self.adopted else neutral
+                                                  for k, (f, neutral, *_) in _PARAMS.items()}}
+
     def to_json(self) -> dict[str, Any]:
         fin = (lambda x: float(x) if math.isfinite(x) else None)
         return {"parameters": {k: fin(v) for k, v in self.parameters.items()},
@@ -94,7 +107,7 @@ class CommandResponse:
 
 
 def _steady_means(w: DriveWindows, steps: Sequence[int] | None) -> tuple[np.ndarray, ...]:
-    sel = np.asarray(w.steady, bool)
+    sel = np.array(w.steady, dtype=bool)  # a copy: the caller's windows are not changed
     if steps is not None:
         sel &= np.isin(w.calib_step, np.asarray(list(steps), dtype=w.calib_step.dtype))
     with np.errstate(all="ignore"):
@@ -163,7 +176,8 @@ def identify_command_response(w: DriveWindows, steps: Sequence[int] | None = Non
             s2 = ss / max(2 * n - len(free), 1)
             gain = {}
             for k in free:
-                gain[k] = (_fit([j for j in free if j != k], u_l, u_r, y_l, y_r)[2] - ss) / s2 if s2 > 0 else math.inf
+                rise = _fit([j for j in free if j != k], u_l, u_r, y_l, y_r)[2] - ss
+                gain[k] = rise / s2 if s2 > 0 else (math.inf if rise > 0 else 0.0)  # noise-free data: any rise
             drop = min(gain, key=gain.get)
             if gain[drop] > CHI2_ADOPT:
                 break

@@ -292,11 +292,12 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
-    response, start = None, scn
+    response, start, applied = None, scn, {}
     if config.steady:  # the steady command response first: the simulation starts from it and does not refit it
         response = identify_command_response(w, calib_steps)
-        if response.overrides():
-            start = replace(scn, platform=replace(scn.platform, **response.overrides()))
+        applied = {k: v for k, v in response.fields().items() if getattr(scn.platform, k) != v}
+        if applied:
+            start = replace(scn, platform=replace(scn.platform, **applied))
         if response.n_windows >= MIN_WINDOWS:
             catalogue = tuple(e for e in catalogue if e.name not in STEADY_EFFECTS)
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
@@ -326,7 +327,9 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
                        "max_abs_enc_wheel_speed": float(np.nanmax(enc)),
                        "steps_restarting_after_gap": int(sum(not v for v in continuous_with_previous(w).values()) - 1),
                        **tracking},
-        "command_response": response.to_json() if response is not None else None,
+        "command_response": ({**response.to_json(), "applied": {k: (v if np.isfinite(v) else None)  # None: no limit
+                                                                for k, v in applied.items()}, "catalogue_without": list(STEADY_EFFECTS)
+                              if response.n_windows >= MIN_WINDOWS else []} if response is not None else None),
         "workflow": _clean(res.to_json()),
         "held_out": _clean(held_out),
     }

@@ -171,6 +171,17 @@ def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
     return out
 
 
+def _command_path(doc: Mapping[str, Any], kept: list[str]) -> str:
+    """Who modelled the robot's command path in this run: the steady stage, the simulation's selection, or no one."""
+    cr = doc.get("command_response")
+    if cr and cr.get("catalogue_without"):
+        return ("here the steady command response identified it on the calibration half alone ("
+                + (", ".join(cr["adopted"]) if cr["adopted"] else "the steady windows asked for none of it")
+                + f"), and the simulation stage was not offered {', '.join(cr['catalogue_without'])}.")
+    cmd = [k for k in kept if k in ("command_map", "command_limit", "wheel_speed_limit", "command_accel")]
+    return f"kept here: {', '.join(cmd)}." if cmd else "none was kept here."
+
+
 def _reading(doc: Mapping[str, Any]) -> list[str]:
     """Sentences derived from the numbers (none written by hand)."""
     wf, ho = doc["workflow"], doc["held_out"]
@@ -207,11 +218,7 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
             "catalogue models it with command_map (gains on the commanded mean and half-difference), "
             "command_limit (clipping of both) and wheel_speed_limit, added after the first run of this workflow on "
             "these data named nothing (that diagnosis, these slopes, uses all steady windows, the test half included); "
-            + ("here the steady command response identified it on the calibration half alone: "
-               f"{', '.join(doc['command_response']['adopted'])}."
-               if doc.get("command_response") and doc["command_response"]["adopted"] else
-               (f"kept here: {', '.join(k for k in kept if k.startswith('command_'))}."
-                if any(k.startswith("command_") for k in kept) else "none was kept here."))
+            + _command_path(doc, kept)
             + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "
             "tables.")
     return out

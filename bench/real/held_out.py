@@ -1,5 +1,7 @@
 """Held-out scoring of the real-data gap workflow (:mod:`bench.real.gap`): each held-out step replayed
-with the nominal testbed model and with the model the workflow ended with, residuals measured - model in
+with the nominal testbed model, with the model the simulation started from (the steady command response of
+:mod:`bench.real.command_response`, when it changed anything) and with the model the workflow ended with, residuals
+measured - model in
 :mod:`bench.gap`'s own residual space, pooled over steps per channel and per driving regime."""
 from __future__ import annotations
 
@@ -151,5 +153,6 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
                  **({"start_mean": float(np.mean(cost_s)),
                      "steps_improved_start": int(sum(a < b for a, b in zip(cost_s, cost_b)))}
                     if cost_s and len(cost_s) == len(steps) else {}),
-                 "per_step": [{"before": b, "after": a, "j_noise": j} for b, a, j in zip(cost_b, cost_a, jn)]},
+                 "per_step": [{"before": s["cost"]["before"], "after": s["cost"]["after"], "j_noise": s["j_noise"],
+                               **({"start": s["cost"]["start"]} if "start" in s["cost"] else {})} for s in steps]},
     }
