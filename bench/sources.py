@@ -14,8 +14,15 @@ Kinds (:data:`SOURCE_KINDS`): ``paper`` (a physical quantity a paper measured or
 (real data, the file named), ``testbed`` (a testbed choice with no outcome in view: why), ``chosen``
 (chosen to produce a claimed outcome: ``claims`` lists them as ``"<paper>.<claim id>"``; each becomes a
 calibration target, :mod:`bench.reproduce.sources`).  A field the file does not set takes the dataclass
-default, whose source is :data:`DEFAULT_REFS` (kind ``testbed``); a field a scenario's
-``[platform_overrides]`` / ``[terrain_overrides]`` or ``--set`` changes gets kind ``override``.
+default, whose source is :data:`DEFAULT_REFS` (kind ``testbed``); a field ``--set`` changes gets kind
+``override``.  A scenario file's ``[platform_overrides]`` / ``[terrain_overrides]`` are parameters too: each leaf
+names its source in the scenario's own ``[sources]`` table under ``"platform.<key>"`` / ``"terrain.<key>"``
+(:func:`override_sources`; same kinds, ``chosen`` with its claims), which the merged platform / terrain then carry::
+
+    [terrain_overrides]
+    roughness_gd0 = 256e-6
+    [sources]
+    "terrain.roughness_gd0" = {kind = "testbed", ref = "ISO 8608 class C, chosen before any run"}
 
 :func:`file_sources` checks a file: a parameter without a source, a source without a parameter, an
 unknown kind, a ``chosen`` source without claims is a one-line :class:`~bench.schema.SpecError` naming
@@ -34,7 +41,7 @@ from typing import Any, Iterable, Iterator, Mapping
 from bench.schema import _UNIT_FIELDS, SpecError
 
 __all__ = ["SOURCE_KINDS", "OVERRIDE", "DESCRIPTIVE", "DEFAULT_REFS", "Source", "Sources", "parameters",
-           "file_sources", "default_sources"]
+           "file_sources", "override_sources", "default_sources"]
 
 SOURCE_KINDS = ("paper", "datasheet", "calibration", "real", "testbed", "chosen")
 OVERRIDE = "override"  # set by a scenario's overrides or --set; never written in a platform / terrain file
@@ -142,6 +149,10 @@ class Sources(Mapping[str, Source]):
                 d[k] = Source(OVERRIDE, ref)
         return Sources(d)
 
+    def sourced(self, given: Mapping[str, Source]) -> "Sources":
+        """A copy with the fields of ``given`` (file keys, e.g. ``slope_deg``) taking those sources."""
+        return Sources({**self._d, **{_field_name(k): v for k, v in given.items()}})
+
     @classmethod
     def _from_spec(cls, value: Any, file: Path | str, name: str) -> "Sources":
         """:func:`bench.schema.build`'s conversion: a Sources, or a table as in a file (nested or dotted keys),
@@ -225,6 +236,30 @@ def file_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]
         if key not in entries:
             raise SpecError(file, key, value, f"no source: add {key} = {{kind = ..., ref = ...}} to [sources] "
                                               f"(kind {'|'.join(SOURCE_KINDS)})")
+        out[key] = _source(entries[key], file, key, value, SOURCE_KINDS)
+    return out
+
+
+def override_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]:
+    """The checked sources of a scenario file's overrides (keys ``"platform.<key>"`` / ``"terrain.<key>"`` as the
+    file writes them): every leaf of ``[platform_overrides]`` / ``[terrain_overrides]`` has one in the scenario's
+    ``[sources]``, and every source there names such a leaf."""
+    raw = data.get("sources", {})
+    if not isinstance(raw, Mapping):
+        raise SpecError(file, "sources", raw, "expected a [sources] table")
+    params = {f"{part}.{key}": value for part in ("platform", "terrain")
+              for key, value in parameters(data.get(f"{part}_overrides") or {})}
+    entries = dict(_entries(raw))
+    for key, entry in entries.items():
+        if key not in params:
+            raise SpecError(file, f"sources.{key}", entry, "a source for no [platform_overrides] / "
+                                                           "[terrain_overrides] entry of this scenario")
+    out = {}
+    for key, value in params.items():
+        part, _, rest = key.partition(".")
+        if key not in entries:
+            raise SpecError(file, f"{part}_overrides.{rest}", value, f"no source: add \"{key}\" = {{kind = ..., "
+                                                                     f"ref = ...}} to [sources] (kind {'|'.join(SOURCE_KINDS)})")
         out[key] = _source(entries[key], file, key, value, SOURCE_KINDS)
     return out
 

@@ -25,7 +25,7 @@ from typing import Any, Mapping
 from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
 from bench.schema import SpecError, build, nonneg, positive
 from bench.sensor_spec import EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec
-from bench.sources import Source, Sources, default_sources, file_sources, parameters
+from bench.sources import Source, Sources, default_sources, file_sources, override_sources, parameters
 
 
 # --------------------------------------------------------------------------------------------
@@ -400,11 +400,14 @@ def _apply_dt_max(data: dict[str, Any]) -> None:
         data["dt"] = min(Scenario.dt, dt_max)
 
 
-def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str) -> None:
-    """The overridden fields of a platform / terrain table get kind ``override`` (``ref`` says where)."""
+def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str,
+                    given: Mapping[str, Source] | None = None) -> None:
+    """The overridden fields of a platform / terrain table get kind ``override`` (``ref`` says where), or the
+    source ``given`` names for them (a scenario file's [sources])."""
     srcs = part.get("sources")
     if isinstance(srcs, Mapping):
-        part["sources"] = Sources(srcs).overridden([k for k in keys if k.split(".")[0] != "sources"], ref)
+        part["sources"] = Sources(srcs).overridden([k for k in keys if k.split(".")[0] != "sources"], ref).sourced(
+            given or {})
 
 
 def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
@@ -442,12 +445,16 @@ def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[
             data[key] = _read_part(ppath, cls)
         elif not isinstance(ref, dict):
             raise SpecError(path, key, ref, f"expected a {key} name or table")
-    # [platform_overrides] / [terrain_overrides] tables merge on top of the referenced files
+    # [platform_overrides] / [terrain_overrides] tables merge on top of the referenced files, each leaf with the
+    # source the scenario's [sources] gives it (bench.sources.override_sources)
+    given = override_sources(raw, path)
+    data.pop("sources", None)
     for key in ("platform", "terrain"):
         ov = data.pop(f"{key}_overrides", None)
         if ov:
             data[key] = _deep_merge(data[key], ov)
-            _mark_overrides(data[key], [k for k, _ in parameters(ov)], f"{path.name} [{key}_overrides]")
+            _mark_overrides(data[key], [k for k, _ in parameters(ov)], f"{path.name} [{key}_overrides]",
+                            {k.partition(".")[2]: v for k, v in given.items() if k.startswith(key + ".")})
     return path, data
 
 

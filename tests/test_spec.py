@@ -231,8 +231,9 @@ def test_overrides_get_an_override_source_and_leave_the_physics_hash_alone():
     from bench.sim import scenario_hash
 
     base = load_scenario("mandow_straight_asphalt_solid")
-    assert base.platform.sources["sensors.reference.kind"].kind == "override"  # the scenario's [platform_overrides]
-    assert "[platform_overrides]" in base.platform.sources["sensors.reference.kind"].ref
+    # the scenario's [platform_overrides], with the source its own [sources] gives
+    assert base.platform.sources["sensors.reference.kind"].kind == "paper"
+    assert "Mandow 2007 Sec. IV-B" in base.platform.sources["sensors.reference.kind"].ref
     assert base.terrain.sources["mu_sa"].kind == "chosen"
     s = load_scenario("mandow_straight_asphalt_solid", {"terrain.mu_sa": 0.5, "platform.motor.max_power": 3.0})
     assert s.terrain.mu_sa == 0.5 and s.terrain.sources["mu_sa"].kind == "override"
@@ -263,3 +264,40 @@ def test_tire_fields_convert_psi_at_the_file_boundary_and_are_range_checked(tmp_
                      ("platform.tire_rolling_resistance", 0.3)):
         with pytest.raises(SpecError, match=key.split(".")[1]):
             load_scenario("circle_vinyl", {key: bad})
+
+
+def _scenario_with_override(tmp_path, sources: str) -> Path:
+    """A scenario file in a scenario root of its own (its platform and terrain files copied) with one terrain
+    override and the given [sources] lines."""
+    import shutil
+
+    for sub in ("platforms", "terrains"):
+        shutil.copytree(SCENARIO_DIR / sub, tmp_path / sub)
+    path = tmp_path / "ovr.toml"
+    path.write_text((SCENARIO_DIR / "gap_test_coulomb.toml").read_text().split("\n# where each override")[0]
+                    + "\n" + sources)
+    return path
+
+
+def test_a_scenario_override_without_a_source_is_a_one_line_error(tmp_path):
+    path = _scenario_with_override(tmp_path, "")
+    with pytest.raises(SpecError, match=r"ovr.toml.*terrain_overrides.model.*no source: add \"terrain.model\""):
+        load_scenario(path, root=tmp_path)
+    path = _scenario_with_override(tmp_path / "b", '[sources]\n"terrain.model" = {kind = "testbed", ref = "x"}\n'
+                                   '"terrain.mu_sa" = {kind = "paper", ref = "y"}\n')
+    with pytest.raises(SpecError, match=r"sources.terrain.mu_sa.*a source for no \[platform_overrides\]"):
+        load_scenario(path, root=tmp_path / "b")
+
+
+def test_a_scenario_override_chosen_for_a_claim_is_a_calibration_target(tmp_path):
+    from bench.reproduce.sources import calibration_targets, parameter_sources
+
+    path = _scenario_with_override(tmp_path, '[sources]\n"terrain.model" = {kind = "chosen", ref = "picked for p.q", '
+                                             'claims = ["p.q"]}\n')
+    scn = load_scenario(path, root=tmp_path)
+    assert scn.terrain.sources["model"].kind == "chosen" and scn.terrain.sources["model"].claims == ("p.q",)
+    assert [(s.file, s.parameter) for s in calibration_targets((tmp_path,))["p.q"]] == [
+        (f"{tmp_path.name}/ovr.toml", "terrain.model")]
+    # the shipped scenarios: every override has a source, none of them chosen today
+    shipped = [s for s in parameter_sources() if s.file.startswith("scenarios/")]
+    assert len(shipped) == 18 * 4 + 4 * 7 + 2 and not [s for s in shipped if s.kind == "chosen"]

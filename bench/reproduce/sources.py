@@ -1,7 +1,8 @@
 """Calibration targets from the parameter sources of the testbed.
 
 Every platform and terrain file (``scenarios/platforms/*.toml``, ``scenarios/terrains/*.toml``) gives the source
-of each numeric parameter in a ``[sources]`` table::
+of each numeric parameter in a ``[sources]`` table, and every scenario file (``scenarios/*.toml``) the source of each
+of its overrides (``"terrain.roughness_gd0" = {...}``)::
 
     [sources]
     mu_sa = {kind = "paper", ref = "Yu 2010 Table II (vinyl)"}
@@ -26,7 +27,9 @@ from bench.spec import SCENARIO_DIR
 
 __all__ = ["ParameterSource", "SOURCE_DIRS", "parameter_sources", "calibration_targets"]
 
-SOURCE_DIRS = (SCENARIO_DIR / "platforms", SCENARIO_DIR / "terrains")
+# the platform and terrain files, and the scenario files (the sources of their [platform_overrides] /
+# [terrain_overrides], keyed "platform.<key>" / "terrain.<key>": bench.sources.override_sources)
+SOURCE_DIRS = (SCENARIO_DIR / "platforms", SCENARIO_DIR / "terrains", SCENARIO_DIR)
 
 
 @dataclass(frozen=True)
