@@ -414,3 +414,26 @@ def test_a_kinematic_start_without_skid_is_not_steady():
     tr = run_physics(dataclasses.replace(scn, command=cmd, initial_skid_ratio=1.0), 0)
     m = tr["t"] <= 0.5
     assert np.max(np.abs(tr["wz"][m] / 0.5 - 1)) > 0.2
+
+
+def test_icr_offset_follows_lateral_acceleration_over_friction():
+    """Lateral force balance of a steady turn: the treads' Coulomb forces supply m v w, a share
+    v w / (mu g) of the friction; the ICR's longitudinal offset S (Yi 2009 eq. (7)) that tilts the slip
+    velocities to give that share scales with it. So S mu / (v w) is unchanged when mu is scaled (the
+    slip geometry is the same), while S itself follows 1/mu: the origin of the testbed's S in
+    yi2009.s_surface and s_gamma_model (the causes cite this test)."""
+    def point(mu_scale: float) -> tuple[float, float]:
+        base = load_scenario("yi_s_gamma_concrete").terrain
+        scn = load_scenario("yi_s_gamma_concrete", {
+            "command.segments": [[5.0, 140.0, 60.0]], "duration": 5.0,
+            "terrain.mu_sa": base.mu_sa * mu_scale, "terrain.mu_op": base.mu_op * mu_scale})
+        run = simulate(scn, 3)
+        w = run.t >= 1.0
+        s = float(np.median(run["truth_x_icr"][w]))
+        a_c = float(np.median(run["truth_vx"][w] * run["truth_wz"][w]))
+        return s, s * base.mu_sa * mu_scale * G / abs(a_c)
+
+    s_hi, k_hi = point(1.0)
+    s_lo, k_lo = point(0.6)
+    assert s_lo / s_hi == pytest.approx(1.0 / 0.6, rel=0.15)  # S follows 1/mu at one command
+    assert k_lo == pytest.approx(k_hi, rel=0.1)  # the scaled offset is a property of the slip geometry
