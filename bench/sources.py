@@ -176,9 +176,12 @@ def _field_name(key: str) -> str:
 
 
 def _entries(table: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:
-    """(dotted key, entry) of a [sources] table; a sub-table without ``kind`` nests ([sources.motor])."""
+    """(dotted key, entry) of a [sources] table; a sub-table without ``kind`` nests ([sources.motor]), as does one
+    whose ``kind`` is itself a table (the source of a field named ``kind``, written as an unquoted dotted key:
+    ``platform.sensors.reference.kind = {kind = ..., ref = ...}``)."""
     for key, val in table.items():
-        if isinstance(val, Source) or (isinstance(val, Mapping) and "kind" in val) or not isinstance(val, Mapping):
+        entry = isinstance(val, Mapping) and "kind" in val and not isinstance(val["kind"], Mapping)
+        if isinstance(val, Source) or entry or not isinstance(val, Mapping):
             yield prefix + key, val
         else:
             yield from _entries(val, f"{prefix}{key}.")

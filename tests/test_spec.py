@@ -301,3 +301,19 @@ def test_a_scenario_override_chosen_for_a_claim_is_a_calibration_target(tmp_path
     # the shipped scenarios: every override has a source, none of them chosen today
     shipped = [s for s in parameter_sources() if s.file.startswith("scenarios/")]
     assert len(shipped) == 18 * 4 + 4 * 7 + 2 and not [s for s in shipped if s.kind == "chosen"]
+
+
+def test_the_source_of_a_field_named_kind_may_be_an_unquoted_dotted_key():
+    """TOML reads ``platform.sensors.reference.kind = {kind = ..., ref = ...}`` as nested tables whose innermost
+    key is ``kind``: that is the field's source, not a source entry of ``reference`` (before: 'a source for no
+    [platform_overrides] entry')."""
+    import tomllib
+
+    from bench.sources import override_sources
+
+    text = ('[platform_overrides]\nsensors.reference.kind = "dgps"\n'
+            '[sources]\nplatform.sensors.reference.kind = {kind = "paper", ref = "Mandow 2007 Sec. IV-B"}\n')
+    got = override_sources(tomllib.loads(text), "x.toml")
+    assert list(got) == ["platform.sensors.reference.kind"] and got["platform.sensors.reference.kind"].kind == "paper"
+    quoted = text.replace("platform.sensors.reference.kind =", '"platform.sensors.reference.kind" =')
+    assert override_sources(tomllib.loads(quoted), "x.toml") == got

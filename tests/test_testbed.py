@@ -417,15 +417,16 @@ def test_a_kinematic_start_without_skid_is_not_steady():
 
 
 def test_icr_offset_follows_lateral_acceleration_over_friction():
-    """Lateral force balance of a steady turn: the treads' Coulomb forces supply m v w, a share
-    v w / (mu g) of the friction; the ICR's longitudinal offset S (Yi 2009 eq. (7)) that tilts the slip
-    velocities to give that share scales with it. So S mu / (v w) is unchanged when mu is scaled (the
-    slip geometry is the same), while S itself follows 1/mu: the origin of the testbed's S in
-    yi2009.s_surface and s_gamma_model (the causes cite this test)."""
-    def point(mu_scale: float) -> tuple[float, float]:
+    """Lateral force balance of a steady turn: the treads' friction forces (saturating at mu N) supply
+    m v w, a share v w / (mu g) of the friction; the ICR's longitudinal offset S (Yi 2009 eq. (7)) that
+    tilts the slip velocities to give that share scales with it. So S mu / (v w) is unchanged when mu is
+    scaled (the slip geometry is the same) and when the speed is, at one wheel-speed ratio, while S itself
+    follows 1/mu and v w: the origin of the testbed's S in yi2009.s_surface and s_gamma_model (the causes
+    cite this test)."""
+    def point(mu_scale: float, wl: float = 140.0, wr: float = 60.0) -> tuple[float, float]:
         base = load_scenario("yi_s_gamma_concrete").terrain
         scn = load_scenario("yi_s_gamma_concrete", {
-            "command.segments": [[5.0, 140.0, 60.0]], "duration": 5.0,
+            "command.segments": [[5.0, wl, wr]], "duration": 5.0,
             "terrain.mu_sa": base.mu_sa * mu_scale, "terrain.mu_op": base.mu_op * mu_scale})
         run = simulate(scn, 3)
         w = run.t >= 1.0
@@ -437,3 +438,6 @@ def test_icr_offset_follows_lateral_acceleration_over_friction():
     s_lo, k_lo = point(0.6)
     assert s_lo / s_hi == pytest.approx(1.0 / 0.6, rel=0.15)  # S follows 1/mu at one command
     assert k_lo == pytest.approx(k_hi, rel=0.1)  # the scaled offset is a property of the slip geometry
+    (s_slow, k_slow), (s_fast, k_fast) = point(1.0, 70.0, 30.0), point(1.0, 175.0, 75.0)
+    assert s_slow < 0.5 * s_hi < s_hi < s_fast  # one ratio 7:3, three speeds: S grows with v w
+    assert k_slow == pytest.approx(k_hi, rel=0.15) and k_fast == pytest.approx(k_hi, rel=0.15)

@@ -16,24 +16,35 @@ with ``u`` the commanded and ``w`` the measured steady wheel speeds [rad/s].  Th
 (:func:`bench.real.gap.run_real_gap`) starts from the model with this map and simulates only what the steady
 windows cannot show (transients, the yaw response).
 
+The statistical unit is a steady command, not a window: the steady windows of one command step share its
+command and most of their error (on the Husky's calibration half the residuals of a step's two windows correlate
+at 0.68 left and 0.41 right), so they are averaged into one point per (step, command).  The two sides' errors are
+correlated too, so the residuals are taken in the map's own coordinates, the half-sum and the half-difference of
+the wheel speeds, each weighted by its own residual variance (equal side variances make the two uncorrelated).
+
 What is adopted, so that a robot whose wheels track their command gets the nominal model back (backward
 elimination, one parameter at a time, each time refitting the rest):
-- a limit (``L_diff``, ``W``) only when at least :data:`MIN_BEYOND` steady windows ask for more than it (their
-  mapped command beyond the fitted limit): a limit no window reaches is not identified and stays off;
-- each parameter only when leaving it at its neutral value (gain 1, no limit) raises the residual sum of squares by
-  more than :data:`CHI2_ADOPT` times the residual variance (a likelihood-ratio test with one degree of freedom at
-  p = 0.001; the windows are taken as independent, which two windows per command step are not quite, hence the
-  strict level).  For a limit the level is nominal only ("no limit" sits on the boundary and the limit's location
-  is fitted, so the statistic is not chi2(1)); :data:`MIN_BEYOND` is what keeps a limit from being fitted to noise
-  (a null calibration of 400 seeds x 200 windows adopted something in 0.5 % of them).
+- a parameter only when at least :data:`MIN_BEYOND` steady commands identify it: for a limit (``L_diff``, ``W``)
+  those that ask for more than it (their mapped command beyond the fitted limit: a limit no command reaches is
+  not identified and stays off); for the mean's gain those below the wheel limit (with every command at the limit
+  only the ratio of the gains shows, and a mean gain fitted there is wrong by far more than its standard error:
+  the difference's gain carries the ratio, :func:`_support`);
+- each parameter only when leaving it at its neutral value (gain 1, no limit) raises the weighted residual sum of
+  squares by more than :data:`CHI2_ADOPT` (a likelihood-ratio test with one degree of freedom at p = 0.001).  For
+  a limit the level is nominal only ("no limit" sits on the boundary and the limit's location is fitted, so the
+  statistic is not chi2(1)); :data:`MIN_BEYOND` is what keeps a limit from being fitted to noise.  Residual
+  variances are floored at (1e-9 x the largest wheel speed)^2, so noise-free data adopt only what rounding cannot
+  explain.
 With enough steady windows (:data:`MIN_WINDOWS`) the identified map replaces the platform's own map entirely
 (:meth:`CommandResponse.fields`: what is not adopted goes back to neutral, and the mean clip, which the steady map
-does without, to none), so that the model the simulation starts from is the map the windows were fitted with.  A steady response cannot tell a controller's
-clip from a drive that cannot go faster: both are a ceiling on the steady wheel speeds, which is what is modelled.
+does without, to none), so that the model the simulation starts from is the map the windows were fitted with.  A
+steady response cannot tell a controller's clip from a drive that cannot go faster: both are a ceiling on the
+steady wheel speeds, which is what is modelled.
 """
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -47,7 +58,7 @@ __all__ = ["CommandResponse", "identify_command_response", "steady_map", "MIN_BE
            "STEADY_EFFECTS"]
 
 CHI2_ADOPT = 10.83  # chi2(1) at p = 0.001: the drop in residual sum of squares / variance a parameter must earn
-MIN_BEYOND = 3    # a limit is adopted when at least this many steady windows ask for more than it
+MIN_BEYOND = 3    # a parameter is adopted only when at least this many steady commands identify it (_support)
 MIN_WINDOWS = 8   # fewer steady windows: nothing identified (the nominal map kept)
 # the gap catalogue's effects on the same platform fields: with enough steady windows the steady map is what the
 # windows say about them, and the simulation stage (fitted on a few seconds) does not refit them
@@ -74,14 +85,16 @@ def steady_map(theta: dict[str, float], u_l: np.ndarray, u_r: np.ndarray) -> tup
 @dataclass(frozen=True)
 class CommandResponse:
     """The identified steady map: adopted parameters (neutral when not adopted), their standard errors, the
-    windows it rests on and the steady wheel-speed RMS [rad/s] of measured - model before (the command itself)
-    and after."""
+    windows it rests on and the steady commands they average to (``n_commands``, the statistical unit), per
+    parameter the steady commands that identify it (``n_support``, :func:`_support`), and the
+    steady wheel-speed RMS [rad/s] of measured - model over the windows before (the command itself) and after."""
 
     parameters: dict[str, float]
     stderr: dict[str, float]
     adopted: tuple[str, ...]
     n_windows: int
-    n_beyond: dict[str, int] = field(default_factory=dict)
+    n_support: dict[str, int] = field(default_factory=dict)
+    n_commands: int = 0
     rms_before: float = math.nan
     rms_after: float = math.nan
 
@@ -102,89 +115,123 @@ class CommandResponse:
         return {"parameters": {k: fin(v) for k, v in self.parameters.items()},
                 "stderr": {k: fin(v) for k, v in self.stderr.items()},
                 "adopted": list(self.adopted), "platform_overrides": self.overrides(),
-                "n_windows": self.n_windows, "n_beyond": dict(self.n_beyond),
+                "n_windows": self.n_windows, "n_commands": self.n_commands, "n_support": dict(self.n_support),
                 "rms_before": fin(self.rms_before), "rms_after": fin(self.rms_after)}
 
 
-def _steady_means(w: DriveWindows, steps: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+def _steady_windows(w: DriveWindows, steps: Sequence[int] | None) -> tuple[np.ndarray, ...]:
+    """Per steady window of ``steps``: its step and the means of the commanded and measured wheel speeds."""
     sel = np.array(w.steady, dtype=bool)  # a copy: the caller's windows are not changed
     if steps is not None:
         sel &= np.isin(w.calib_step, np.asarray(list(steps), dtype=w.calib_step.dtype))
-    with np.errstate(all="ignore"):
-        means = [np.nanmean(w[k][sel], axis=1) if sel.any() else np.zeros(0)
-                 for k in ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr")]
-    ok = np.all([np.isfinite(m) for m in means], axis=0) if sel.any() else np.zeros(0, bool)
-    return tuple(m[ok] for m in means)
+    if not sel.any():
+        return tuple(np.zeros(0) for _ in range(5))
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window: dropped below
+        means = [np.nanmean(w[k][sel], axis=1) for k in ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr")]
+    ok = np.all([np.isfinite(m) for m in means], axis=0)
+    return (np.asarray(w.calib_step)[sel][ok].astype(float), *(m[ok] for m in means))
 
 
-def _fit(free: Sequence[str], u_l, u_r, y_l, y_r) -> tuple[dict[str, float], dict[str, float], float]:
-    """Least squares of the free parameters (the others neutral): values, standard errors from the Jacobian, and
-    the residual sum of squares."""
+def _per_command(step: np.ndarray, u_l: np.ndarray, u_r: np.ndarray, y_l: np.ndarray, y_r: np.ndarray
+                 ) -> tuple[np.ndarray, ...]:
+    """The windows averaged into one point per (step, command) (module docstring: the statistical unit)."""
+    if not step.size:
+        return u_l, u_r, y_l, y_r
+    key = np.c_[step, np.round(u_l, 6), np.round(u_r, 6)]
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    n = np.bincount(inv).astype(float)
+    return tuple(np.bincount(inv, weights=x) / n for x in (u_l, u_r, y_l, y_r))
+
+
+def _channels(theta: dict[str, float], u_l, u_r, y_l, y_r) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals model - measured in the map's coordinates: the half-sum and the half-difference."""
+    p_l, p_r = steady_map(theta, u_l, u_r)
+    return 0.5 * ((p_l + p_r) - (y_l + y_r)), 0.5 * ((p_r - p_l) - (y_r - y_l))
+
+
+def _variances(theta: dict[str, float], n_free: int, u_l, u_r, y_l, y_r) -> np.ndarray:
+    """Residual variance of each channel under ``theta`` (dof: commands - free parameters), floored (docstring)."""
+    floor = (1e-9 * max(float(np.abs(np.r_[y_l, y_r]).max(initial=1.0)), 1.0)) ** 2
+    return np.array([max(float(np.sum(r ** 2)) / max(u_l.size - n_free, 1), floor)
+                     for r in _channels(theta, u_l, u_r, y_l, y_r)])
+
+
+def _fit(free: Sequence[str], var: np.ndarray, u_l, u_r, y_l, y_r
+         ) -> tuple[dict[str, float], dict[str, float], float]:
+    """Weighted least squares of the free parameters (the others neutral; channel variances ``var``): values,
+    standard errors from the Jacobian, and the weighted residual sum of squares."""
+    wts = 1.0 / np.sqrt(var)
+
+    def resid(x) -> np.ndarray:
+        r_sum, r_diff = _channels(dict(zip(free, x)), u_l, u_r, y_l, y_r)
+        return np.r_[wts[0] * r_sum, wts[1] * r_diff]
+
     if not free:
-        p_l, p_r = steady_map({}, u_l, u_r)
-        return {}, {}, float(np.sum((p_l - y_l) ** 2 + (p_r - y_r) ** 2))
+        return {}, {}, float(np.sum(resid([]) ** 2))
     top = max(float(np.abs(np.r_[y_l, y_r]).max(initial=1.0)), 1.0)
     lo, hi = [_PARAMS[k][2] for k in free], [_PARAMS[k][3] for k in free]
-
-    def resid(x):
-        p_l, p_r = steady_map(dict(zip(free, x)), u_l, u_r)
-        return np.r_[p_l - y_l, p_r - y_r]
-
     best = None
     for scale in (2.0, 0.9, 0.5):  # a limit started above every window has no gradient: start some below
         start = np.clip([_PARAMS[k][4] if _PARAMS[k][4] is not None else scale * top for k in free], lo, hi)
         f = least_squares(resid, start, bounds=(lo, hi))
         if best is None or f.cost < best.cost:
             best = f
-    ss = float(np.sum(best.fun ** 2))
-    s2 = ss / max(best.fun.size - len(free), 1)
-    se = np.sqrt(np.maximum(np.diag(np.linalg.pinv(best.jac.T @ best.jac)) * s2, 0.0))
+    wss = float(np.sum(best.fun ** 2))
+    se = np.sqrt(np.maximum(np.diag(np.linalg.pinv(best.jac.T @ best.jac)), 0.0))  # unit-variance residuals
     se = np.where(np.all(best.jac == 0, axis=0), np.inf, se)  # a limit nothing reaches: no information
-    return dict(zip(free, (float(x) for x in best.x))), dict(zip(free, (float(v) for v in se))), ss
+    return dict(zip(free, (float(x) for x in best.x))), dict(zip(free, (float(v) for v in se))), wss
 
 
-def _beyond(theta: dict[str, float], u_l, u_r) -> dict[str, int]:
-    """Per limit: steady windows whose command, mapped by the stages before it, asks for more than the limit."""
+def _support(theta: dict[str, float], u_l, u_r) -> dict[str, int]:
+    """Per free parameter, the steady commands that identify it: for a limit those whose command, mapped by the
+    stages before it, asks for more; for the mean's gain those below the wheel limit; for the difference's gain
+    those that turn within the clip (at the wheel limit they still show its ratio to the mean's gain, which is
+    what a neutral mean gain leaves it to carry)."""
     g_sum, g_diff = theta.get("gain_sum", 1.0), theta.get("gain_diff", 1.0)
+    lim, top = theta.get("limit_diff", math.inf), theta.get("wheel_limit", math.inf)
     half = g_diff * 0.5 * (u_r - u_l)
-    out = {}
-    if "limit_diff" in theta:
-        out["limit_diff"] = int(np.sum(np.abs(half) > theta["limit_diff"]))
-    if "wheel_limit" in theta:
-        h = np.clip(half, -theta.get("limit_diff", math.inf), theta.get("limit_diff", math.inf))
-        m = g_sum * 0.5 * (u_l + u_r)
-        out["wheel_limit"] = int(np.sum(np.maximum(np.abs(m - h), np.abs(m + h)) > theta["wheel_limit"]))
-    return out
+    h = np.clip(half, -lim, lim)
+    m = g_sum * 0.5 * (u_l + u_r)
+    fast = np.maximum(np.abs(m - h), np.abs(m + h))
+    clipped, limited = np.abs(half) > lim, fast > top
+    counts = {"gain_sum": int(np.sum(~limited & (np.abs(m) > 0))),
+              "gain_diff": int(np.sum(~clipped & (np.abs(half) > 0))),  # at the wheel limit: its ratio to gain_sum
+              "limit_diff": int(np.sum(clipped)), "wheel_limit": int(np.sum(limited))}
+    return {k: v for k, v in counts.items() if k in theta}
 
 
 def identify_command_response(w: DriveWindows, steps: Sequence[int] | None = None) -> CommandResponse:
     """The steady map (module docstring) from the steady windows of ``steps`` (all windows when None)."""
-    u_l, u_r, y_l, y_r = _steady_means(w, steps)
-    n = int(u_l.size)
+    step, *win = _steady_windows(w, steps)
+    n_win = int(step.size)
     neutral = {k: v[1] for k, v in _PARAMS.items()}
-    rms0 = float(np.sqrt(np.mean(np.r_[u_l - y_l, u_r - y_r] ** 2))) if n else math.nan
-    if n < MIN_WINDOWS:
-        return CommandResponse(neutral, {k: math.inf for k in _PARAMS}, (), n, {}, rms0, rms0)
+    rms0 = float(np.sqrt(np.mean(np.r_[win[0] - win[2], win[1] - win[3]] ** 2))) if n_win else math.nan
+    u_l, u_r, y_l, y_r = _per_command(step, *win)
+    n = int(u_l.size)
+    if n_win < MIN_WINDOWS:
+        return CommandResponse(neutral, {k: math.inf for k in _PARAMS}, (), n_win, {}, n, rms0, rms0)
     free = list(_PARAMS)
-    theta, se, ss = _fit(free, u_l, u_r, y_l, y_r)
-    while free:  # backward elimination (module docstring)
-        beyond = _beyond(theta, u_l, u_r)
-        unreached = [k for k in free if k in beyond and beyond[k] < MIN_BEYOND]
-        if unreached:
-            drop = unreached[0]
+    var = _variances(neutral, 0, u_l, u_r, y_l, y_r)  # first fit: weights of the command itself
+    theta, _, _ = _fit(free, var, u_l, u_r, y_l, y_r)
+    while free:  # backward elimination (module docstring); theta is fitted for free
+        var = _variances(theta, len(free), u_l, u_r, y_l, y_r)  # the channels' variances under the current model
+        theta, se, wss = _fit(free, var, u_l, u_r, y_l, y_r)
+        support = _support(theta, u_l, u_r)
+        unsupported = [k for k in free if support.get(k, 0) < MIN_BEYOND]
+        if unsupported:
+            drop = unsupported[0]
         else:
-            s2 = ss / max(2 * n - len(free), 1)
-            gain = {}
-            for k in free:
-                rise = _fit([j for j in free if j != k], u_l, u_r, y_l, y_r)[2] - ss
-                gain[k] = rise / s2 if s2 > 0 else (math.inf if rise > 0 else 0.0)  # noise-free data: any rise
-            drop = min(gain, key=gain.get)
-            if gain[drop] > CHI2_ADOPT:
+            rise = {k: _fit([j for j in free if j != k], var, u_l, u_r, y_l, y_r)[2] - wss for k in free}
+            drop = min(rise, key=rise.get)
+            if rise[drop] > CHI2_ADOPT:
                 break
         free = [k for k in free if k != drop]
-        theta, se, ss = _fit(free, u_l, u_r, y_l, y_r)
-    beyond = _beyond(theta, u_l, u_r)
+        theta, se, _ = _fit(free, var, u_l, u_r, y_l, y_r)
+    support = _support(theta, u_l, u_r)
     params = {**neutral, **theta}
-    p_l, p_r = steady_map(theta, u_l, u_r)
-    rms1 = float(np.sqrt(np.mean(np.r_[p_l - y_l, p_r - y_r] ** 2)))
-    return CommandResponse(params, {k: se.get(k, math.inf) for k in _PARAMS}, tuple(free), n, beyond, rms0, rms1)
+    p_l, p_r = steady_map(theta, win[0], win[1])
+    rms1 = float(np.sqrt(np.mean(np.r_[p_l - win[2], p_r - win[3]] ** 2)))
+    return CommandResponse(params, {k: se.get(k, math.inf) for k in _PARAMS}, tuple(free), n_win, support, n,
+                           rms0, rms1)

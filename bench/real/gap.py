@@ -15,7 +15,8 @@ Protocol (:func:`run_real_gap`):
 3. **Steady command response** (``GapRunConfig.steady``, on by default): the robot's own velocity controller
    between the logged command and the wheels (gains on the mean and the half-difference, a clip of the
    half-difference, the drive's wheel-speed limit) identified without simulation from the window means of every
-   steady window of the calibration half (:func:`bench.real.command_response.identify_command_response`).  What it
+   steady window of the calibration half, one point per steady command
+   (:func:`bench.real.command_response.identify_command_response`).  What it
    adopts goes into the platform the simulation starts from; the catalogue's effects on the same fields
    (:data:`bench.real.command_response.STEADY_EFFECTS`) are not refitted on the few seconds of the fit block.
 4. ``find_gap(block, start)`` with the nominal testbed model (scenario :data:`SCENARIO`: the

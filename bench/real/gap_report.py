@@ -151,23 +151,25 @@ def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
            "The robot's own velocity controller between the logged command and the wheels, identified without "
            "simulation from the window means of the calibration half's steady windows (`bench.real.command_response`: "
            "a gain on the mean wheel speed, one on the half-difference, a clip of the half-difference, both sides "
-           "scaled so the faster wheel stays within a limit).  A parameter is adopted when leaving it at its neutral "
-           f"value raises the residual sum of squares by more than {CHI2_ADOPT:g} x its variance (p = 0.001), a "
-           f"limit also only when at least {MIN_BEYOND} windows ask for more; what is adopted is part of the model "
-           "the simulation starts from and is not refitted there.\n"]
+           "scaled so the faster wheel stays within a limit).  The windows of a step are averaged into one point per "
+           "steady command, and the residuals are weighed in half-sum and half-difference, each by its own variance. "
+           "A parameter is adopted when leaving it at its neutral value raises that weighted sum of squares by more "
+           f"than {CHI2_ADOPT:g} (p = 0.001) and at least {MIN_BEYOND} steady commands identify it (beyond a limit; "
+           "below the wheel limit for the mean's gain; turning within the clip for the difference's); what is "
+           "adopted is part of the model the simulation starts from and is not refitted there.\n"]
     if cr["n_windows"] < MIN_WINDOWS:
         out.append(f"Only {cr['n_windows']} steady windows (fewer than {MIN_WINDOWS}): nothing identified.\n")
         return out
-    out += ["| parameter | fitted | std. error | windows beyond the limit | adopted |", "|---|---:|---:|---:|---|"]
+    out += ["| parameter | fitted | std. error | commands that identify it | adopted |", "|---|---:|---:|---:|---|"]
     unit = {"gain_sum": "-", "gain_diff": "-", "limit_diff": "rad/s", "wheel_limit": "rad/s"}
     for k, v in cr["parameters"].items():
         adopted = k in cr["adopted"]
         out.append(f"| {k} [{unit.get(k, '')}] | {_g(v, 5) if adopted else 'off'} | "
-                   f"{_g(cr['stderr'][k], 2) if adopted else '-'} | {cr['n_beyond'].get(k, '-')} | "
+                   f"{_g(cr['stderr'][k], 2) if adopted else '-'} | {cr['n_support'].get(k, '-')} | "
                    f"{'yes' if adopted else 'no'} |")
-    out.append(f"\nSteady wheel speeds, RMS measured - model over {cr['n_windows']} windows: "
-               f"{_g(cr['rms_before'], 3)} rad/s (the command as the reference) -> {_g(cr['rms_after'], 3)} rad/s. "
-               "Standard errors treat the windows as independent (two per command step: they are not quite).\n")
+    out.append(f"\nSteady wheel speeds, RMS measured - model over {cr['n_windows']} windows "
+               f"({cr.get('n_commands', '-')} steady commands): {_g(cr['rms_before'], 3)} rad/s (the command as the "
+               f"reference) -> {_g(cr['rms_after'], 3)} rad/s.\n")
     return out
 
 
@@ -217,7 +219,9 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
             + ". The robot's own velocity controller sits between the logged command and the wheels; the "
             "catalogue models it with command_map (gains on the commanded mean and half-difference), "
             "command_limit (clipping of both) and wheel_speed_limit, added after the first run of this workflow on "
-            "these data named nothing (that diagnosis, these slopes, uses all steady windows, the test half included); "
+            "these data named nothing (that diagnosis, these slopes, uses all steady windows, the test half "
+            "included, so the held-out improvement below is not fully independent of the held-out steps: the form "
+            "of the map was chosen with them in view, its values are fitted on the calibration half alone); "
             + _command_path(doc, kept)
             + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "
             "tables.")

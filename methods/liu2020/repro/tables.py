@@ -132,10 +132,14 @@ def _worst(out: Mapping[str, float], a: str, b: str, scenarios: Any, prefix: str
     """The scenario where ``a / b`` is largest: ``<prefix>worst_<a>_<b>.<a>`` and ``.<b>`` (its two RMS) and
     ``.scenario`` (its number, 1-3).  Liu's Sec. V-D summaries ("about 80 %", "about 10 %") are scored on it against
     the weakest of the paper's own three ratios: the statistic and its threshold then read Table 2 the same way (a
-    geometric mean against the weakest single ratio would let one scenario carry the others)."""
+    geometric mean against the weakest single ratio would let one scenario carry the others).  A scenario without a
+    ratio (NaN) makes all three NaN: the claim is "not evaluated" rather than read on the other two."""
     keys = list(scenarios)
-    k = max(keys, key=lambda key: out[f"{prefix}{key}.{a}"] / out[f"{prefix}{key}.{b}"])
+    ratio = {key: out[f"{prefix}{key}.{a}"] / out[f"{prefix}{key}.{b}"] for key in keys}
     name = f"{prefix}worst_{a}_{b}"
+    if not all(math.isfinite(r) for r in ratio.values()):
+        return {f"{name}.{a}": math.nan, f"{name}.{b}": math.nan, f"{name}.scenario": math.nan}
+    k = max(keys, key=ratio.__getitem__)
     return {f"{name}.{a}": out[f"{prefix}{k}.{a}"], f"{name}.{b}": out[f"{prefix}{k}.{b}"],
             f"{name}.scenario": float(list(SCENARIOS).index(k) + 1)}
 

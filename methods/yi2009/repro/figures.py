@@ -36,7 +36,7 @@ def fig3(ctx: Any) -> dict[str, float]:
         f"{100 * _ref_vs_truth_s(ev):.2f} cm, so two measurements differ by up to {196 * math.sqrt(2) * _ref_vs_truth_s(ev):.2f}"
         " cm at 95 %. "
         f"The testbed's tire model gives {hi} an S {ev.fig3[hi]['s'] / ev.fig3[lo]['s']:.1f}x that of {lo}: its S is the "
-        "centripetal share of the Coulomb tread forces, proportional to v w / (mu g), so each terrain's friction "
+        "centripetal share of the tread friction (Janosi law), proportional to v w / (mu g), so each terrain's friction "
         "sets it (tests/test_testbed.py::test_icr_offset_follows_lateral_acceleration_over_friction); the paper's "
         "robot did not show this (Sec. V-B). The truth S (fig3.*_truth_cm) agrees with the vision values, so it is the testbed physics, "
         "not the measurement.")

@@ -302,3 +302,18 @@ def test_window_drift_closed_form():
     line = {"truth_x": 3.0 * t, "truth_y": np.zeros_like(t), "truth_yaw": np.zeros_like(t)}
     short = {"x": 2.7 * t + 5.0, "y": np.full_like(t, 1.0), "yaw": np.zeros_like(t)}
     assert _window_drift(line, short, 20, 90) == pytest.approx(0.1 * 3.0 * (t[90] - t[20]), rel=1e-9)
+
+
+def test_the_worst_scenario_is_nan_when_a_scenario_has_no_ratio():
+    """A scenario without a ratio leaves the summary claims unscored ("not evaluated"), not read on the other two
+    (before, max() over the ratios, where a NaN compares False, picked one of the others)."""
+    from bench.reproduce.claims import evaluate_claim
+    from methods.liu2020.repro.tables import _worst
+
+    out = {"s1.icr": 1.0, "s1.en_dr": 2.0, "s2.icr": math.nan, "s2.en_dr": 1.0, "s3.icr": 1.0, "s3.en_dr": 4.0}
+    got = _worst(out, "icr", "en_dr", ("s1", "s2", "s3"))
+    assert all(math.isnan(v) for v in got.values()) and len(got) == 3
+    claim = {"kind": "ratio", "num": "worst_icr_en_dr.icr", "den": "worst_icr_en_dr.en_dr", "op": "<=", "value": 0.621}
+    assert evaluate_claim(claim, got)[0] is None
+    out["s2.icr"] = 0.4
+    assert _worst(out, "icr", "en_dr", ("s1", "s2", "s3"))["worst_icr_en_dr.scenario"] == 1.0
