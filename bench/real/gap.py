@@ -106,14 +106,15 @@ differ in which compromise they strike for the yaw response the testbed Husky la
 robot's ~2.5), so no larger fit set was adopted.
 The steady command response (issue 32) is the stage those steady-window readings asked for: no greedy selection on
 a few seconds assembled the controller chain, while the steady windows identify it alone.  On the calibration half's
-202 steady windows it gives a mean gain 1.819 +- 0.004, a half-difference gain 0.794 +- 0.003, a half-difference
-clip 3.070 +- 0.006 rad/s and a wheel-speed limit 6.007 +- 0.006 rad/s (steady wheel-speed RMS 4.16 -> 0.070 rad/s);
+202 steady windows (105 steady commands) it gives a mean gain 1.817 +- 0.005, a half-difference gain 0.793 +- 0.005,
+a half-difference clip 3.073 +- 0.010 rad/s and a wheel-speed limit 6.006 +- 0.009 rad/s (steady wheel-speed RMS
+4.16 -> 0.070 rad/s; the first version, which counted windows singly, gave the same within 0.003);
 the limits match the sources of the platform file (husky_base max_speed 1.0 m/s / 0.165 m = 6.06 rad/s; DRIVE's
 max_ang_speed 1.0 rad/s x Clearpath's effective track 0.555 x 1.875 m / (2 x 0.165 m) = 3.15 rad/s).  The stage was
 adopted on calibration steps alone (the 60 calibration steps after the fit block: 0.300 of the nominal cost, 44
-lowered, without it; 0.286, 49 with it); then the held-out result was measured once: 36717 -> 9579 with the steady
-map alone (26.1 %, 87 of 100 lowered) -> 8032 with the fit block's actuator delay (0.49 +- 0.06 s) on top (21.9 %,
-86 of 100; per-step median 0.149, was 0.254).
+lowered, without it; 0.286, 49 with it, first version); then the held-out result was measured: 36717 -> 9578 with
+the steady map alone (26.1 %, 87 of 100 lowered) -> 8029 with the fit block's actuator delay (0.494 +- 0.058 s) on top
+(21.9 %, 86 of 100; per-step median 0.148, was 0.254).
 """
 from __future__ import annotations
 
