@@ -115,8 +115,9 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-effects", type=count(1), default=None, metavar="K", help="effects selected at most "
                    "(default 2)")
     p.add_argument("--no-steady", action="store_true",
-                   help="skip the first stage, the steady command response identified on the calibration half's "
-                        "steady windows (bench.real.command_response): the simulation starts from the nominal model")
+                   help="skip the steady stages, the command and turn responses identified on the calibration half's "
+                        "steady windows (bench.real.command_response, turn_response): the simulation starts from the "
+                        "nominal model")
     p.add_argument("--workers", type=count(1), default=None)
 
 

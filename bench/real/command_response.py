@@ -54,8 +54,8 @@ from scipy.optimize import least_squares
 from bench.real.drive import DriveWindows
 from bench.sim.commands import wheel_speed_scale
 
-__all__ = ["CommandResponse", "identify_command_response", "steady_map", "MIN_BEYOND", "CHI2_ADOPT", "MIN_WINDOWS",
-           "STEADY_EFFECTS"]
+__all__ = ["CommandResponse", "identify_command_response", "steady_map", "steady_window_means", "per_command",
+           "MIN_BEYOND", "CHI2_ADOPT", "MIN_WINDOWS", "STEADY_EFFECTS"]
 
 CHI2_ADOPT = 10.83  # chi2(1) at p = 0.001: the drop in residual sum of squares / variance a parameter must earn
 MIN_BEYOND = 3    # a parameter is adopted only when at least this many steady commands identify it (_support)
@@ -119,30 +119,32 @@ class CommandResponse:
                 "rms_before": fin(self.rms_before), "rms_after": fin(self.rms_after)}
 
 
-def _steady_windows(w: DriveWindows, steps: Sequence[int] | None) -> tuple[np.ndarray, ...]:
-    """Per steady window of ``steps``: its step and the means of the commanded and measured wheel speeds."""
-    sel = np.array(w.steady, dtype=bool)  # a copy: the caller's windows are not changed
+def steady_window_means(w: DriveWindows, steps: Sequence[int] | None,
+                        channels: Sequence[str] = ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr")) -> tuple[np.ndarray, ...]:
+    """Per steady window of ``steps`` (all when None) with every channel finite: its step and the means of
+    ``channels`` (the caller's windows are not changed)."""
+    sel = np.array(w.steady, dtype=bool)  # a copy
     if steps is not None:
         sel &= np.isin(w.calib_step, np.asarray(list(steps), dtype=w.calib_step.dtype))
     if not sel.any():
-        return tuple(np.zeros(0) for _ in range(5))
+        return tuple(np.zeros(0) for _ in range(len(channels) + 1))
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN window: dropped below
-        means = [np.nanmean(w[k][sel], axis=1) for k in ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr")]
+        means = [np.nanmean(w[k][sel], axis=1) for k in channels]
     ok = np.all([np.isfinite(m) for m in means], axis=0)
     return (np.asarray(w.calib_step)[sel][ok].astype(float), *(m[ok] for m in means))
 
 
-def _per_command(step: np.ndarray, u_l: np.ndarray, u_r: np.ndarray, y_l: np.ndarray, y_r: np.ndarray
-                 ) -> tuple[np.ndarray, ...]:
-    """The windows averaged into one point per (step, command) (module docstring: the statistical unit)."""
+def per_command(step: np.ndarray, u_l: np.ndarray, u_r: np.ndarray, *others: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The windows averaged into one point per (step, command) (module docstring: the statistical unit): the
+    commands and each of ``others``."""
     if not step.size:
-        return u_l, u_r, y_l, y_r
+        return (u_l, u_r, *others)
     key = np.c_[step, np.round(u_l, 6), np.round(u_r, 6)]
     _, inv = np.unique(key, axis=0, return_inverse=True)
     inv = inv.ravel()
     n = np.bincount(inv).astype(float)
-    return tuple(np.bincount(inv, weights=x) / n for x in (u_l, u_r, y_l, y_r))
+    return tuple(np.bincount(inv, weights=x) / n for x in (u_l, u_r, *others))
 
 
 def _channels(theta: dict[str, float], u_l, u_r, y_l, y_r) -> tuple[np.ndarray, np.ndarray]:
@@ -204,11 +206,11 @@ def _support(theta: dict[str, float], u_l, u_r) -> dict[str, int]:
 
 def identify_command_response(w: DriveWindows, steps: Sequence[int] | None = None) -> CommandResponse:
     """The steady map (module docstring) from the steady windows of ``steps`` (all windows when None)."""
-    step, *win = _steady_windows(w, steps)
+    step, *win = steady_window_means(w, steps)
     n_win = int(step.size)
     neutral = {k: v[1] for k, v in _PARAMS.items()}
     rms0 = float(np.sqrt(np.mean(np.r_[win[0] - win[2], win[1] - win[3]] ** 2))) if n_win else math.nan
-    u_l, u_r, y_l, y_r = _per_command(step, *win)
+    u_l, u_r, y_l, y_r = per_command(step, *win)
     n = int(u_l.size)
     if n_win < MIN_WINDOWS:
         return CommandResponse(neutral, {k: math.inf for k in _PARAMS}, (), n_win, {}, n, rms0, rms0)

@@ -19,6 +19,10 @@ Protocol (:func:`run_real_gap`):
    (:func:`bench.real.command_response.identify_command_response`).  What it
    adopts goes into the platform the simulation starts from; the catalogue's effects on the same fields
    (:data:`bench.real.command_response.STEADY_EFFECTS`) are not refitted on the few seconds of the fit block.
+   Then the **steady turn response** (:mod:`bench.real.turn_response`): the yaw rate per wheel-speed difference
+   (chi) measured on the calibration half's steady turning commands sets the tire-ground friction across the wheel,
+   and the wheel speeds those turns reached set the smallest drive strength that reaches them; what it adopts
+   (``lateral_friction``, ``motor_torque``) is not refitted either.
 4. ``find_gap(block, start)`` with the nominal testbed model (scenario :data:`SCENARIO`: the
    ``husky`` platform on ``asphalt``, the measured commanded wheel speeds replayed by
    :func:`bench.gap.model.replay_scenario`), the steady command response applied: screening, fits and greedy
@@ -131,8 +135,10 @@ import numpy as np
 from bench.real.drive import DriveWindows, import_drive_windows, windows_to_runs
 from bench.gap import Thresholds, find_gap
 from bench.gap.catalogue import CATALOGUE, Effect
+from bench.gap.model import apply_overrides
 from bench.real.benchmark import split_steps
 from bench.real.command_response import MIN_WINDOWS, STEADY_EFFECTS, identify_command_response
+from bench.real.turn_response import identify_turn_response, steady_turns
 from bench.real.gap_report import _figure, _markdown
 from bench.real.held_out import score_held_out, step_residuals, wheel_series
 from bench.real.io import _atomic_write_text
@@ -153,13 +159,14 @@ class GapRunConfig:
     n_test: int | None  # held-out test steps (None: all)
     max_effects: int  # selection rounds of bench.gap.select
     separate: bool = False  # fit on the first n_fit calibration steps, each replayed on its own (bench.gap.segments)
-    steady: bool = True  # first the steady command response on the calibration half (bench.real.command_response)
+    steady: bool = True  # first the steady stages on the calibration half (bench.real.command_response, turn_response)
 
     def describe(self) -> str:
         held = "every test-half step" if self.n_test is None else f"the first {self.n_test} test-half steps"
         fit = (f"fit on the first {self.n_fit} calibration steps, each replayed on its own ({6 * self.n_fit} s)"
                if self.separate else f"fit block of {self.n_fit} consecutive calibration steps ({6 * self.n_fit} s)")
-        first = "the steady command response from the calibration half's steady windows, then " if self.steady else ""
+        first = ("the steady command and turn responses from the calibration half's steady windows, then "
+                 if self.steady else "")
         return f"{first}{fit}, at most {self.max_effects} effect(s) selected, {held} held out"
 
 
@@ -294,7 +301,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
-    response, start, applied = None, scn, {}
+    response, turn, turn_overrides, start, applied = None, None, {}, scn, {}
     if config.steady:  # the steady command response first: the simulation starts from it and does not refit it
         response = identify_command_response(w, calib_steps)
         applied = {k: v for k, v in response.fields().items() if getattr(scn.platform, k) != v}
@@ -302,6 +309,13 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
             start = replace(scn, platform=replace(scn.platform, **applied))
         if response.n_windows >= MIN_WINDOWS:
             catalogue = tuple(e for e in catalogue if e.name not in STEADY_EFFECTS)
+        # then the steady turn response (chi and the drive the steady turns need) on the model with that map
+        turn = identify_turn_response(steady_turns(w, calib_steps, scn.platform.wheel_radius, scn.platform.track),
+                                      start)
+        turn_overrides = turn.overrides(start)
+        if turn_overrides:
+            start = apply_overrides(start, turn_overrides)
+            catalogue = tuple(e for e in catalogue if e.name not in turn.to_json()["catalogue_without"])
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
         calib_set = set(int(s) for s in calib_steps)
         block = [s for s in order if s in calib_set][: config.n_fit]
@@ -332,6 +346,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         "command_response": ({**response.to_json(), "applied": {k: (v if np.isfinite(v) else None)  # None: no limit
                                                                 for k, v in applied.items()}, "catalogue_without": list(STEADY_EFFECTS)
                               if response.n_windows >= MIN_WINDOWS else []} if response is not None else None),
+        "turn_response": ({**turn.to_json(), "overrides": dict(turn_overrides)} if turn is not None else None),
         "workflow": _clean(res.to_json()),
         "held_out": _clean(held_out),
     }

@@ -13,6 +13,7 @@ from bench.gap import GapResult
 from bench.gap.report import STDERR_NOTE, change_text, uncertainty_text
 from bench.gap.residuals import UNITS
 from bench.real.command_response import CHI2_ADOPT, MIN_BEYOND, MIN_WINDOWS
+from bench.real.turn_response import TORQUE_GRID, Z_ADOPT as TURN_Z
 from bench.real.held_out import MIN_REGIME_SHARE
 from bench.real.io import _new_figure, _save_figure
 
@@ -50,10 +51,11 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     add(f"- Commanded wheel speeds reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s, measured ones never exceed "
         f"{f['max_abs_enc_wheel_speed']:.2f} rad/s.\n")
     L.extend(_steady_section(doc.get("command_response")))
+    L.extend(_turn_section(doc.get("turn_response")))
     add("## What the workflow names (fit block)\n")
-    if doc.get("command_response") and doc["command_response"]["adopted"]:
-        add("The simulation starts from the nominal model with the steady command response above; its "
-            "\"nominal\" below is that model.\n")
+    if _steady_changed(doc):
+        add("The simulation starts from the nominal model with the steady stages above; its \"nominal\" below is "
+            "that model.\n")
     add(f"**Verdict:** {wf['verdict']}\n")
     c = wf["cost"]
     add(f"Cost (weighted normalised mean square; sensor noise alone ~ {_g(c['j_noise'], 3)}): nominal "
@@ -105,7 +107,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
              else "")
     steady = ""
     if "start_mean" in hc and hc["before_mean"] > 0:
-        steady = (f" -> steady command response alone {_g(hc['start_mean'])} "
+        steady = (f" -> the steady stages alone {_g(hc['start_mean'])} "
                   f"({100 * hc['start_mean'] / hc['before_mean']:.1f} %, lower on {hc['steps_improved_start']} steps)")
     add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])}{steady} -> final {_g(hc['after_mean'])}{share} "
         f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
@@ -170,6 +172,36 @@ def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
     out.append(f"\nSteady wheel speeds, RMS measured - model over {cr['n_windows']} windows "
                f"({cr.get('n_commands', '-')} steady commands): {_g(cr['rms_before'], 3)} rad/s (the command as the "
                f"reference) -> {_g(cr['rms_after'], 3)} rad/s.\n")
+    return out
+
+
+def _steady_changed(doc: Mapping[str, Any]) -> bool:
+    """Whether a steady stage changed the model the simulation starts from."""
+    cr, tr = doc.get("command_response"), doc.get("turn_response")
+    return bool((cr and cr.get("applied")) or (tr and tr.get("adopted")))
+
+
+def _turn_section(tr: Mapping[str, Any] | None) -> list[str]:
+    """The second stage: the steady turn response (bench.real.turn_response), or nothing when it did not run."""
+    if not tr:
+        return []
+    out = ["## Steady turn response (calibration half, steady turning commands)\n",
+           "The yaw rate per wheel-speed difference, chi = r (w_r - w_l) / (B w_z) (Wang 2015 eq. (25)), measured on "
+           "the calibration half's steady turning commands (`bench.real.turn_response`), against the testbed's on "
+           f"the same commands: the tire-ground friction across the wheel (lateral_friction) is solved so that the "
+           f"two agree when they differ by more than {TURN_Z:g} standard errors (p = 0.001), and the drive is made "
+           "as strong as the steady turns need (motor_torque, the smallest of "
+           f"{', '.join(f'x{v:g}' for v in TORQUE_GRID)} that reaches the measured steady wheel speeds); what is "
+           "adopted is part of the model the simulation starts from and is not refitted there.\n"]
+    if tr["chi"] is None:
+        return out + [f"{tr['note']}.\n"]
+    adopted = tr["adopted"]
+    out += [f"- Measured chi {_g(tr['chi'], 4)} +- {_g(tr['chi_se'], 2)} over {tr['n_turns']} steady turning "
+            f"commands; the testbed's {_g(tr['chi_nominal'], 4)} before, {_g(tr['chi_final'], 4)} after.",
+            f"- Simulated - measured steady wheel speeds, RMS: {_g(tr['wheel_rms_nominal'], 3)} rad/s before, "
+            f"{_g(tr['wheel_rms_final'], 3)} rad/s after (tolerance {_g(tr['wheel_tolerance'], 3)} rad/s).",
+            "- Adopted: " + (", ".join(f"{k} {_g(v, 4)}" for k, v in adopted.items()) if adopted else "nothing")
+            + (f" ({tr['note']})" if tr.get("note") else "") + ".\n"]
     return out
 
 

@@ -1,6 +1,6 @@
 """Held-out scoring of the real-data gap workflow (:mod:`bench.real.gap`): each held-out step replayed
-with the nominal testbed model, with the model the simulation started from (the steady command response of
-:mod:`bench.real.command_response`, when it changed anything) and with the model the workflow ended with, residuals
+with the nominal testbed model, with the model the simulation started from (the steady stages of
+:mod:`bench.real.command_response` and :mod:`bench.real.turn_response`, when they changed anything) and with the model the workflow ended with, residuals
 measured - model in
 :mod:`bench.gap`'s own residual space, pooled over steps per channel and per driving regime."""
 from __future__ import annotations
@@ -35,7 +35,7 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None) -
     """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
     noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
     alignment as inside the workflow).  ``start``: the scenario the workflow started from when it is not the
-    nominal ``scenario`` (the steady command response of :mod:`bench.real.command_response` applied); the final
+    nominal ``scenario`` (the steady stages of :mod:`bench.real.command_response` / ``turn_response`` applied); the final
     model is then ``res`` on top of it, each model replayed from the initial state it settles on, and the start
     model's own cost is ``cost["start"]``."""
     run = run.without_truth()
