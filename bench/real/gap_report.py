@@ -13,7 +13,7 @@ from bench.gap import GapResult
 from bench.gap.report import STDERR_NOTE, change_text, uncertainty_text
 from bench.gap.residuals import UNITS
 from bench.real.command_response import CHI2_ADOPT, MIN_BEYOND, MIN_WINDOWS
-from bench.real.turn_response import TORQUE_GRID, Z_ADOPT as TURN_Z
+from bench.real.turn_response import K_SIM, TIE as TURN_TIE, TORQUE_GRID, Z_ADOPT as TURN_Z
 from bench.real.held_out import MIN_REGIME_SHARE
 from bench.real.io import _new_figure, _save_figure
 
@@ -187,21 +187,23 @@ def _turn_section(tr: Mapping[str, Any] | None) -> list[str]:
         return []
     out = ["## Steady turn response (calibration half, steady turning commands)\n",
            "The yaw rate per wheel-speed difference, chi = r (w_r - w_l) / (B w_z) (Wang 2015 eq. (25)), measured on "
-           "the calibration half's steady turning commands (`bench.real.turn_response`), against the testbed's on "
-           f"the same commands: the tire-ground friction across the wheel (lateral_friction) is solved so that the "
-           f"two agree when they differ by more than {TURN_Z:g} standard errors (p = 0.001), and the drive is made "
-           "as strong as the steady turns need (motor_torque, the smallest of "
-           f"{', '.join(f'x{v:g}' for v in TORQUE_GRID)} that reaches the measured steady wheel speeds); what is "
-           "adopted is part of the model the simulation starts from and is not refitted there.\n"]
-    if tr["chi"] is None:
-        return out + [f"{tr['note']}.\n"]
+           "the calibration half's steady turning commands (`bench.real.turn_response`: a regression through the "
+           "origin, robust standard error) against the testbed's, simulated to steady state on up to "
+           f"{K_SIM} of them with the strongest drive: when the two differ by more than {TURN_Z:g} standard errors "
+           "(p = 0.001) the tire-ground friction across the wheel (lateral_friction) is solved so that they agree. "
+           "Then the drive (motor_torque) whose simulated steady wheel speeds are nearest the measured ones, the "
+           f"weakest of those within {TURN_TIE:g} rad/s of the best (grid {', '.join(f'x{v:g}' for v in TORQUE_GRID)}), "
+           "when it beats the platform's own significantly (p = 0.001).  What is adopted is part of the model the simulation "
+           "starts from and is not refitted there; the encoders' and the gyro's scale enter chi as they read.\n"]
     adopted = tr["adopted"]
-    out += [f"- Measured chi {_g(tr['chi'], 4)} +- {_g(tr['chi_se'], 2)} over {tr['n_turns']} steady turning "
-            f"commands; the testbed's {_g(tr['chi_nominal'], 4)} before, {_g(tr['chi_final'], 4)} after.",
-            f"- Simulated - measured steady wheel speeds, RMS: {_g(tr['wheel_rms_nominal'], 3)} rad/s before, "
-            f"{_g(tr['wheel_rms_final'], 3)} rad/s after (tolerance {_g(tr['wheel_tolerance'], 3)} rad/s).",
-            "- Adopted: " + (", ".join(f"{k} {_g(v, 4)}" for k, v in adopted.items()) if adopted else "nothing")
-            + (f" ({tr['note']})" if tr.get("note") else "") + ".\n"]
+    if tr["chi"] is not None:
+        out += [f"- Measured chi {_g(tr['chi'], 4)} +- {_g(tr['chi_se'], 2)} over {tr['n_turns']} steady turning "
+                f"commands; the testbed's {_g(tr['chi_nominal'], 4)} before, {_g(tr['chi_final'], 4)} after.",
+                f"- Simulated - measured steady wheel speeds, RMS: {_g(tr['wheel_rms_nominal'], 3)} rad/s with the "
+                f"platform's drive, {_g(tr['wheel_rms_final'], 3)} rad/s after (best of the grid + tie "
+                f"{_g(tr['wheel_tolerance'], 3)} rad/s)."]
+    out.append("- Adopted: " + (", ".join(f"{k} {_g(v, 4)}" for k, v in adopted.items()) if adopted else "nothing")
+               + (f" ({tr['note']})" if tr.get("note") else "") + ".\n")
     return out
 
 
