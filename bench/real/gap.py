@@ -120,13 +120,14 @@ lowered, without it; 0.286, 49 with it, first version); then the held-out result
 the steady map alone (26.1 %, 87 of 100 lowered) -> 8029 with the fit block's actuator delay (0.494 +- 0.058 s) on top
 (21.9 %, 86 of 100; per-step median 0.148, was 0.254).
 The steady turn response (:mod:`bench.real.turn_response`) answers the yaw response the diagnosis above named: the
-calibration half's steady turning commands give chi 2.518 +- 0.047 (97 commands) against the testbed's 1.888, solved
-by mu_lat_ratio 1.778 (chi 2.517), and the steady turns then need a drive x2.5 (steady wheel RMS 0.958 -> 0.092 rad/s;
-mu_lat alone makes the drive fall further short, which is why the greedy selection never took it).  Adopted on
-calibration steps alone (the 99 after the fit block, start model against the nominal: 35.8 %, 81 lowered, with the
-steady map; 25.4 %, 85 lowered, with the friction and drive as well); then the held-out result was measured:
-36717 -> 10220 with the two steady stages alone (27.8 %, 94 of 100 lowered) -> 7295 with the fit block's partial
-candidates powertrain_lag (0.83 / 1.02 s) and shear_displacement (17 mm) on top (19.9 %, 84 of 100; median 0.172).
+calibration half's steady turning commands give chi 2.518 +- 0.057 (97 commands, robust standard error) against the
+testbed's 1.886, solved by mu_lat_ratio 1.778, and the steady turns then need a drive x3 (steady wheel RMS 1.44 ->
+0.053 rad/s at that friction; mu_lat alone makes the drive fall further short, which is why the greedy selection never
+took it).  Adopted on calibration steps alone (the 99 after the fit block, start model against the nominal: 35.8 %,
+81 lowered, with the steady map; 25.4 %, 85 lowered, with friction 1.8 and a drive x2.5, the first version's rule;
+30.9 %, 85, with x3); then the held-out result was measured: 36717 -> 11170 with the two steady stages alone (30.4 %,
+95 of 100 lowered) -> 7302 with the fit block's partial candidates powertrain_lag (0.84 / 1.02 s) and
+shear_displacement (17 mm) on top (19.9 %, 85 of 100; median 0.172).
 """
 from __future__ import annotations
 

@@ -200,7 +200,7 @@ def _turn_section(tr: Mapping[str, Any] | None) -> list[str]:
         out += [f"- Measured chi {_g(tr['chi'], 4)} +- {_g(tr['chi_se'], 2)} over {tr['n_turns']} steady turning "
                 f"commands; the testbed's {_g(tr['chi_nominal'], 4)} before, {_g(tr['chi_final'], 4)} after.",
                 f"- Simulated - measured steady wheel speeds, RMS: {_g(tr['wheel_rms_nominal'], 3)} rad/s with the "
-                f"platform's drive, {_g(tr['wheel_rms_final'], 3)} rad/s after (best of the grid + tie "
+                f"platform's drive (at the friction above), {_g(tr['wheel_rms_final'], 3)} rad/s after (best of the grid + tie "
                 f"{_g(tr['wheel_tolerance'], 3)} rad/s)."]
     out.append("- Adopted: " + (", ".join(f"{k} {_g(v, 4)}" for k, v in adopted.items()) if adopted else "nothing")
                + (f" ({tr['note']})" if tr.get("note") else "") + ".\n")
