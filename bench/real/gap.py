@@ -324,7 +324,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         turn_overrides = turn.overrides(start)
         if turn_overrides:
             start = apply_overrides(start, turn_overrides)
-            catalogue = tuple(e for e in catalogue if e.name not in turn.to_json()["catalogue_without"])
+            catalogue = tuple(e for e in catalogue if e.name not in turn.catalogue_without)
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
         calib_set = set(int(s) for s in calib_steps)
         block = [s for s in order if s in calib_set][: config.n_fit]

@@ -90,6 +90,11 @@ class TurnResponse:
     adopted: dict[str, float] = dataclasses.field(default_factory=dict)
     note: str = ""
 
+    @property
+    def catalogue_without(self) -> list[str]:
+        """The catalogue effects the simulation stage is not offered: those whose value this stage adopted."""
+        return [TURN_EFFECTS[k] for k in self.adopted]
+
     def overrides(self, scn: Scenario) -> dict[str, Any]:
         """Scenario overrides of what was adopted (the catalogue effects' own fields)."""
         out: dict[str, Any] = {}
@@ -103,7 +108,7 @@ class TurnResponse:
                 "chi_nominal": fin(self.chi_nominal), "chi_final": fin(self.chi_final),
                 "wheel_rms_nominal": fin(self.wheel_rms_nominal), "wheel_rms_final": fin(self.wheel_rms_final),
                 "wheel_tolerance": fin(self.wheel_tolerance), "adopted": dict(self.adopted),
-                "catalogue_without": [TURN_EFFECTS[k] for k in self.adopted], "note": self.note}
+                "catalogue_without": self.catalogue_without, "note": self.note}
 
 
 def chi_fit(x: np.ndarray, w_z: np.ndarray) -> tuple[float, float]:
