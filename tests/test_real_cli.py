@@ -303,6 +303,16 @@ def test_real_gap_runs_on_another_robot_from_its_platform_toml(clean, tmp_path, 
     assert doc["platform"] == "bigbot" and doc["data_file"] == "robot_x.parquet"
     md = (out / "robot_x-bigbot_gap.md").read_text()
     assert "husky" not in md.lower() and "robot_x-bigbot_gap.png" in md
+    # every stage ran, and the fit block's effects were judged on every other calibration step
+    from bench.real.benchmark import split_steps
+    from bench.real.drive import import_drive_windows
+    from bench.real.windows import valid_windows
+
+    allw = import_drive_windows(clean[0])
+    calib, _ = split_steps(allw.subset(valid_windows(allw)), 0)
+    v = doc["validation"]
+    assert doc["transient_response"]["n_transitions"] > 0 and "Transient response" in md
+    assert v["n_steps"] == 0 or v["n_steps"] == len(calib) - len(doc["fit_steps"])
     assert "husky" not in capsys.readouterr().out.lower()
 
 
@@ -315,7 +325,8 @@ def test_real_gap_fits_several_calibration_steps_each_on_its_own(clean, tmp_path
 
     out = tmp_path / "gap"
     assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
-                 "--json", str(tmp_path / "g.json"), "--workers", "1", "--fit-steps", "2", "--max-effects", "1"]) == 0
+                 "--json", str(tmp_path / "g.json"), "--workers", "1", "--fit-steps", "2", "--max-effects", "1",
+                 "--no-transient", "--validation-steps", "6"]) == 0
     doc = json.loads((tmp_path / "g.json").read_text())
     allw = import_drive_windows(clean[0])
     w = allw.subset(valid_windows(allw))
@@ -435,7 +446,8 @@ def test_real_gap_without_the_steady_stage(clean, tmp_path):
     for flag in ([], ["--no-steady"]):
         out = tmp_path / ("gap" + "".join(flag))
         assert main(["real-gap", str(clean[0]), "--platform", str(_platform_toml(tmp_path)), "--out", str(out),
-                     "--json", str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1", *flag]) == 0
+                     "--json", str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1",
+                     "--no-transient", "--validation-steps", "6", *flag]) == 0
         docs[bool(flag)] = (json.loads((tmp_path / "g.json").read_text()), (out / "robot_x-bigbot_gap.md").read_text())
     (on, md_on), (off, md_off) = docs[False], docs[True]
     assert off["command_response"] is None and "Steady command response" not in md_off
@@ -452,6 +464,8 @@ def test_real_gap_without_the_steady_stage(clean, tmp_path):
     assert tr["chi"] == pytest.approx(CHI, abs=0.01) and tr["chi_nominal"] < CHI - 0.2
     assert "mu_lat_ratio" in tr["adopted"] and tr["chi_final"] == pytest.approx(CHI, abs=0.02)
     assert off["turn_response"] is None and "Steady turn response" in md_on and "Steady turn response" not in md_off
+    assert off["transient_response"] is None and on["transient_response"] is None  # --no-transient
+    assert "Transient response" not in md_on + md_off
     assert on["held_out"]["cost"]["start_mean"] < on["held_out"]["cost"]["before_mean"]
 
 
@@ -465,7 +479,8 @@ def test_the_steady_stage_replaces_a_platforms_own_command_map(clean, tmp_path):
                         'command_limit_mean = {kind = "testbed", ref = "test"}\n', 1)
     p.write_text(text)
     assert main(["real-gap", str(clean[0]), "--platform", str(p), "--out", str(tmp_path / "gap"), "--json",
-                 str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1"]) == 0
+                 str(tmp_path / "g.json"), "--workers", "1", "--max-effects", "1", "--no-transient",
+                 "--validation-steps", "6"]) == 0
     cr = json.loads((tmp_path / "g.json").read_text())["command_response"]
     assert cr["adopted"] == [] and cr["applied"] == {"command_gain_sum": 1.0, "command_limit_mean": None}
     assert cr["catalogue_without"] == ["command_map", "command_limit", "wheel_speed_limit"]

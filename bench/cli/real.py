@@ -118,6 +118,11 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
                    help="skip the steady stages, the command and turn responses identified on the calibration half's "
                         "steady windows (bench.real.command_response, turn_response): the simulation starts from the "
                         "nominal model")
+    p.add_argument("--no-transient", action="store_true",
+                   help="skip the transient stage (bench.real.transient_response: delay, acceleration limits and "
+                        "encoder latency from the first 2 s of each calibration step)")
+    p.add_argument("--validation-steps", type=count(1), default=None, metavar="N",
+                   help="judge the fit block's effects on the first N other calibration steps (default: all)")
     p.add_argument("--workers", type=count(1), default=None)
 
 
@@ -134,6 +139,10 @@ def _real_gap(a: argparse.Namespace) -> int:
         config = dataclasses.replace(config, max_effects=a.max_effects)
     if a.no_steady:
         config = dataclasses.replace(config, steady=False)
+    if a.no_transient:
+        config = dataclasses.replace(config, transient=False)
+    if a.validation_steps is not None:
+        config = dataclasses.replace(config, n_validation=a.validation_steps)
     r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=config,
                      workers=a.workers, label=label)
     ho = r["doc"]["held_out"]["cost"]

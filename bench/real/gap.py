@@ -22,12 +22,19 @@ Protocol (:func:`run_real_gap`):
    Then the **steady turn response** (:mod:`bench.real.turn_response`): the yaw rate per wheel-speed difference
    (chi) measured on the calibration half's steady turning commands sets the tire-ground friction across the wheel,
    and the wheel speeds those turns reached set the smallest drive strength that reaches them; what it adopts
-   (``lateral_friction``, ``motor_torque``) is not refitted either.
+   (``lateral_friction``, ``motor_torque``) is not refitted either.  Then the **transient response**
+   (``GapRunConfig.transient``, :mod:`bench.real.transient_response`): how the wheels reach those speeds in the first
+   2 s of every calibration step (a dead time, acceleration limits on the mean and the turn, the encoders' latency),
+   fitted in closed form and solved so that the testbed shows the robot's; its three effects (``actuator_delay``,
+   ``command_accel``, ``encoder_latency``) are not offered to the simulation stage, adopted or not.
 4. ``find_gap(block, start)`` with the nominal testbed model (scenario :data:`SCENARIO`: the
    ``husky`` platform on ``asphalt``, the measured commanded wheel speeds replayed by
    :func:`bench.gap.model.replay_scenario`), the steady command response applied: screening, fits and greedy
    selection over the effect catalogue; its own two-fold cross-validation runs inside the fit block.
-5. **Held-out scoring**: each test-half step (the first ``n_test`` if a config sets it; one Run per step, replayed
+5. **Validation on the calibration half** (:func:`validate`): the fit block's effects (named or partial) are kept only
+   if they lower the mean cost over the calibration steps outside the fit block, each replayed on its own; else the
+   final model is the start model.
+6. **Held-out scoring**: each test-half step (the first ``n_test`` if a config sets it; one Run per step, replayed
    from its own measured initial state) is simulated with the nominal model, with the steady command response
    alone, and with the model the workflow ended with (the steady command response, then the named effects, or
    the partial candidates when it named nothing), and the
@@ -128,11 +135,35 @@ took it).  Adopted on calibration steps alone (the 99 after the fit block, start
 30.9 %, 85, with x3); then the held-out result was measured: 36717 -> 11170 with the two steady stages alone (30.4 %,
 95 of 100 lowered) -> 7302 with the fit block's partial candidates powertrain_lag (0.84 / 1.02 s) and
 shear_displacement (17 mm) on top (19.9 %, 85 of 100; median 0.172).
+The transient response (:mod:`bench.real.transient_response`) is the third stage.  On the calibration half's first 2 s
+of each step, DRIVE's per-side first-order lag fits the encoders at an RMS of 1.12 rad/s, and acceleration limits on
+the mean and the half-difference fit them at 0.56: a wheel whose speed barely changes dips while the mean moves faster
+than the turn.  The gyro's dead time (0.14 s) sits below the encoders' (0.31 s).  The testbed's own response matters:
+the nominal one reads as limits of 42 / 15 rad/s^2, and with the limits adopted its chassis breaks its grip late,
+which reads as a 0.12 s dead time on the gyro; so the values are solved against the testbed, and the robot's gyro
+delay is then not significant (rise -0.05).  Adopted: encoder latency 0.28 s and limits 10.8 / 3.4 rad/s^2 (the
+testbed then shows 8.9 / 2.8, the robot's 9.0 / 2.8; the limits are below the vendor's controller settings, so they
+are not those).  The fit block's effects are now kept only if they lower the mean cost on the other calibration steps
+(:func:`validate`).  The order of the work, all decided on calibration steps before each held-out look:
+1. A first version: scaled per-sample statistic against the ideal chain, and no validation.  Calibration steps after
+   the fit block, start model against the nominal: 11.6 %, 89 of 99.  The fit block's partial candidates raised that
+   to 15.3 % (84), hence the validation rule.  Held out: 21.7 %, 98 of 100.
+2. The synthetic tests then showed two faults.  The scaled statistic had no power: it dropped a true 0.11 s latency
+   on 60 transitions.  The reference was wrong: the robot was compared with an ideal step, not with the testbed, so a
+   testbed with hidden limits got a 0.23 s delay it does not have.  Both were mended (:func:`~bench.real.
+   transient_response.rise` over transitions; the elimination against the testbed).  The hidden values are now
+   recovered (tests/test_transient_response.py).  Calibration: 12.0 %, 89 of 99.  The fit block's shear
+   displacement gave 13.1 % and was not kept.  Held out: 36717 -> 8011, 21.8 % of the nominal, lower on 98 of 100
+   steps (median 0.094).  The old pipeline on the same calibration steps: 16.9 %, 84 of 99.
+Five held-out steps carry 61 % of the held-out mean.  They are hard turns in which one side nearly stops and the robot
+yaws at 10-40 % of its usual rate.  The calibration half has such steps too: chi 2.4 to 11 at similar curvature
+ratios.  Such a spread is not a function of the turn, and the testbed's single terrain cannot show it.
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import os
 import time
 from dataclasses import dataclass
@@ -148,13 +179,14 @@ from bench.gap.model import apply_overrides
 from bench.real.benchmark import split_steps
 from bench.real.command_response import MIN_WINDOWS, STEADY_EFFECTS, identify_command_response
 from bench.real.turn_response import identify_turn_response, steady_turns
+from bench.real.transient_response import identify_transient_response
 from bench.real.gap_report import _figure, _markdown
 from bench.real.held_out import score_held_out, step_residuals, wheel_series
 from bench.real.io import _atomic_write_text
 from bench.real.windows import valid_windows
 from bench.report.io import dumps_json
 from bench.run import Run
-from bench.spec import load_scenario, replace
+from bench.spec import load_scenario, replace, to_dict
 
 SCENARIO = "real_husky_asphalt"
 CONTINUITY = 0.5  # [rad/s] max wheel-speed jump across a step boundary for "consecutive in time"
@@ -169,14 +201,20 @@ class GapRunConfig:
     max_effects: int  # selection rounds of bench.gap.select
     separate: bool = False  # fit on the first n_fit calibration steps, each replayed on its own (bench.gap.segments)
     steady: bool = True  # first the steady stages on the calibration half (bench.real.command_response, turn_response)
+    transient: bool = True  # then the transient response (bench.real.transient_response; with ``steady`` only)
+    n_validation: int | None = None  # calibration steps outside the fit block that judge its effects (None: all)
 
     def describe(self) -> str:
         held = "every test-half step" if self.n_test is None else f"the first {self.n_test} test-half steps"
         fit = (f"fit on the first {self.n_fit} calibration steps, each replayed on its own ({6 * self.n_fit} s)"
                if self.separate else f"fit block of {self.n_fit} consecutive calibration steps ({6 * self.n_fit} s)")
-        first = ("the steady command and turn responses from the calibration half's steady windows, then "
+        first = (("the steady command and turn responses from the calibration half's steady windows, "
+                  + ("the transient response from its first 2 s of each step, " if self.transient else "") + "then ")
                  if self.steady else "")
-        return f"{first}{fit}, at most {self.max_effects} effect(s) selected, {held} held out"
+        check = ("every other calibration step" if self.n_validation is None
+                 else f"{self.n_validation} other calibration steps")
+        return (f"{first}{fit}, at most {self.max_effects} effect(s) selected and kept if they lower the cost on "
+                f"{check}, {held} held out")
 
 
 BOUNDED = GapRunConfig(n_fit=2, n_test=None, max_effects=2)
@@ -281,6 +319,83 @@ def nominal_scenario(platform: str | Path = "husky", terrain: str | Path | None 
     return replace(out, id=f"real_{out.platform.name}_{out.terrain.name}")  # what it now is, not the Husky's name
 
 
+@dataclass(frozen=True)
+class StartModel:
+    """The model the simulation stage starts from (``start``), the catalogue it is offered, and what each
+    stage on the calibration half measured (None: the stage did not run)."""
+
+    start: Any
+    catalogue: tuple[Effect, ...]
+    response: Any = None  # CommandResponse
+    applied: Mapping[str, float] = dataclasses.field(default_factory=dict)  # its platform fields that changed
+    turn: Any = None  # TurnResponse
+    turn_overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+    transient: Any = None  # TransientResponse
+    transient_overrides: Mapping[str, Any] = dataclasses.field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        r = self.response
+        return {
+            "command_response": ({**r.to_json(), "applied": {k: (v if np.isfinite(v) else None)  # None: no limit
+                                                             for k, v in self.applied.items()},
+                                  "catalogue_without": list(STEADY_EFFECTS) if r.n_windows >= MIN_WINDOWS else []}
+                                 if r is not None else None),
+            "turn_response": ({**self.turn.to_json(), "overrides": dict(self.turn_overrides)}
+                              if self.turn is not None else None),
+            "transient_response": ({**self.transient.to_json(), "overrides": _clean(dict(self.transient_overrides))}
+                                   if self.transient is not None else None)}
+
+
+def start_model(w: DriveWindows, calib_steps: Sequence[int], scn: Any, catalogue: Sequence[Effect],
+                config: GapRunConfig) -> StartModel:
+    """The calibration-half stages before the simulation (module docstring, step 3): the steady command response,
+    the steady turn response and the transient response, each on the model the previous one left; what a stage
+    adopts is not offered to the simulation stage again."""
+    catalogue = tuple(catalogue)
+    if not config.steady:
+        return StartModel(scn, catalogue)
+    response = identify_command_response(w, calib_steps)
+    applied = {k: v for k, v in response.fields().items() if getattr(scn.platform, k) != v}
+    start = replace(scn, platform=replace(scn.platform, **applied)) if applied else scn
+    if response.n_windows >= MIN_WINDOWS:
+        catalogue = tuple(e for e in catalogue if e.name not in STEADY_EFFECTS)
+    # then the steady turn response (chi and the drive the steady turns need) on the model with that map
+    turn = identify_turn_response(steady_turns(w, calib_steps, scn.platform.wheel_radius, scn.platform.track), start)
+    turn_overrides = turn.overrides(start)
+    if turn_overrides:
+        start = apply_overrides(start, turn_overrides)
+        catalogue = tuple(e for e in catalogue if e.name not in turn.catalogue_without)
+    transient, transient_overrides = None, {}
+    if config.transient:  # then how the wheels reach those speeds: every calibration step's first seconds
+        plat = to_dict(scn.platform)
+        calib = set(int(s) for s in calib_steps)
+        runs = [block_run(w, [s], plat) for s in step_order(w) if int(s) in calib]
+        chi_testbed = turn.chi_final if math.isfinite(turn.chi_final) else turn.chi_nominal
+        transient = identify_transient_response(runs, start, turn.chi, chi_testbed)
+        transient_overrides = transient.overrides(start)
+        if transient_overrides:
+            start = apply_overrides(start, transient_overrides)
+        catalogue = tuple(e for e in catalogue if e.name not in transient.catalogue_without)
+    return StartModel(start, catalogue, response, applied, turn, turn_overrides, transient, transient_overrides)
+
+
+def validate(runs: Sequence[Run], scn: Any, res: Any, start: Any = None) -> dict[str, Any]:
+    """Whether the fit block's effects (named or partial) are kept: they must lower the mean cost over the calibration
+    steps outside the fit block (``runs``, each replayed on its own) against the model the simulation started from
+    (``start``, else the nominal ``scn``).  A few seconds of fit block can pick a compromise that only fits them;
+    these steps are the calibration half's own check of it, and no test-half step enters.  Without effects or steps
+    the (empty) fit is kept."""
+    key = "start" if start is not None else "before"
+    effects = bool(res.effects or res.partial)
+    costs = [step_residuals(r, scn, res, start, nominal=False)["cost"] for r in runs] if effects else []
+    if not costs:
+        return {"n_steps": 0, "kept": True, "start_mean": None, "final_mean": None, "steps_lowered": None}
+    c0 = np.array([c[key] for c in costs])
+    c1 = np.array([c["after"] for c in costs])
+    return {"n_steps": len(costs), "kept": bool(c1.mean() < c0.mean()), "start_mean": float(c0.mean()),
+            "final_mean": float(c1.mean()), "steps_lowered": int(np.sum(c1 < c0))}
+
+
 def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 0, platform: str | Path = "husky",
                  scenario: str = SCENARIO, config: GapRunConfig = BOUNDED,
                  catalogue: Sequence[Effect] = CATALOGUE, workers: int | None = None,
@@ -310,21 +425,8 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
-    response, turn, turn_overrides, start, applied = None, None, {}, scn, {}
-    if config.steady:  # the steady command response first: the simulation starts from it and does not refit it
-        response = identify_command_response(w, calib_steps)
-        applied = {k: v for k, v in response.fields().items() if getattr(scn.platform, k) != v}
-        if applied:
-            start = replace(scn, platform=replace(scn.platform, **applied))
-        if response.n_windows >= MIN_WINDOWS:
-            catalogue = tuple(e for e in catalogue if e.name not in STEADY_EFFECTS)
-        # then the steady turn response (chi and the drive the steady turns need) on the model with that map
-        turn = identify_turn_response(steady_turns(w, calib_steps, scn.platform.wheel_radius, scn.platform.track),
-                                      start)
-        turn_overrides = turn.overrides(start)
-        if turn_overrides:
-            start = apply_overrides(start, turn_overrides)
-            catalogue = tuple(e for e in catalogue if e.name not in turn.catalogue_without)
+    stages = start_model(w, calib_steps, scn, catalogue, config)
+    start, catalogue = stages.start, stages.catalogue
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
         calib_set = set(int(s) for s in calib_steps)
         block = [s for s in order if s in calib_set][: config.n_fit]
@@ -336,7 +438,11 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
                    catalogue=catalogue, progress=progress)
     fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
     after = None if start is scn else start
-    steps = [step_residuals(block_run(w, [s], plat), scn, res, after) for s in held]
+    calib = set(int(s) for s in calib_steps)
+    validation = validate([block_run(w, [s], plat) for s in order if s in calib and s not in block][: config.n_validation],
+                          scn, res, after)
+    keep = validation["kept"]
+    steps = [step_residuals(block_run(w, [s], plat), scn, res, after, keep) for s in held]
     names = steps[0]["space"].regime_names if steps else ()
     held_out = score_held_out(steps, names)
     tracking = command_tracking(w, float(plat["wheel_radius"]), float(plat["track"]))
@@ -352,11 +458,9 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
                        "max_abs_enc_wheel_speed": float(np.nanmax(enc)),
                        "steps_restarting_after_gap": int(sum(not v for v in continuous_with_previous(w).values()) - 1),
                        **tracking},
-        "command_response": ({**response.to_json(), "applied": {k: (v if np.isfinite(v) else None)  # None: no limit
-                                                                for k, v in applied.items()}, "catalogue_without": list(STEADY_EFFECTS)
-                              if response.n_windows >= MIN_WINDOWS else []} if response is not None else None),
-        "turn_response": ({**turn.to_json(), "overrides": dict(turn_overrides)} if turn is not None else None),
+        **stages.to_json(),
         "workflow": _clean(res.to_json()),
+        "validation": _clean(validation),
         "held_out": _clean(held_out),
     }
     out = {"doc": doc, "result": res, "held_out_steps": held}

@@ -13,6 +13,7 @@ from bench.gap import GapResult
 from bench.gap.report import STDERR_NOTE, change_text, uncertainty_text
 from bench.gap.residuals import UNITS
 from bench.real.command_response import CHI2_ADOPT, MIN_BEYOND, MIN_WINDOWS
+from bench.real.transient_response import Z_ADOPT as TRANS_Z
 from bench.real.turn_response import K_SIM, TIE as TURN_TIE, TORQUE_GRID, Z_ADOPT as TURN_Z
 from bench.real.held_out import MIN_REGIME_SHARE
 from bench.real.io import _new_figure, _save_figure
@@ -52,6 +53,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         f"{f['max_abs_enc_wheel_speed']:.2f} rad/s.\n")
     L.extend(_steady_section(doc.get("command_response")))
     L.extend(_turn_section(doc.get("turn_response")))
+    L.extend(_transient_section(doc.get("transient_response")))
     add("## What the workflow names (fit block)\n")
     if _steady_changed(doc):
         add("The simulation starts from the nominal model with the steady stages above; its \"nominal\" below is "
@@ -76,6 +78,12 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         add("")
     if not wf["effects"] and not wf["partial_candidates"]:
         add("No effect was kept.\n")
+    v = doc.get("validation")
+    if v and v["n_steps"]:
+        add(f"**Validation on the calibration half** ({v['n_steps']} calibration steps outside the fit block, each "
+            f"replayed on its own): mean cost {_g(v['start_mean'])} with the model the simulation started from, "
+            f"{_g(v['final_mean'])} with these effects on top (lower on {v['steps_lowered']} steps): the effects are "
+            + ("kept.\n" if v["kept"] else "**not kept**; the final model below is the start model.\n"))
     add(f"{STDERR_NOTE}\n")
     for r in wf["candidates"]:
         add(f"Round {r['round']} ({'accepted' if r['accepted'] else 'rejected'}: {r['reason']}); refined candidates:\n")
@@ -107,7 +115,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
              else "")
     steady = ""
     if "start_mean" in hc and hc["before_mean"] > 0:
-        steady = (f" -> the steady stages alone {_g(hc['start_mean'])} "
+        steady = (f" -> the calibration-half stages alone {_g(hc['start_mean'])} "
                   f"({100 * hc['start_mean'] / hc['before_mean']:.1f} %, lower on {hc['steps_improved_start']} steps)")
     add(f"Held-out cost per step (mean): nominal {_g(hc['before_mean'])}{steady} -> final {_g(hc['after_mean'])}{share} "
         f"(sensor noise alone ~ {_g(hc['j_noise_mean'], 3)}); the final model lowers the cost on "
@@ -177,8 +185,8 @@ def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
 
 def _steady_changed(doc: Mapping[str, Any]) -> bool:
     """Whether a steady stage changed the model the simulation starts from."""
-    cr, tr = doc.get("command_response"), doc.get("turn_response")
-    return bool((cr and cr.get("applied")) or (tr and tr.get("adopted")))
+    cr, tr, ts = doc.get("command_response"), doc.get("turn_response"), doc.get("transient_response")
+    return bool((cr and cr.get("applied")) or (tr and tr.get("adopted")) or (ts and ts.get("adopted")))
 
 
 def _turn_section(tr: Mapping[str, Any] | None) -> list[str]:
@@ -207,6 +215,36 @@ def _turn_section(tr: Mapping[str, Any] | None) -> list[str]:
     return out
 
 
+def _transient_section(tr: Mapping[str, Any] | None) -> list[str]:
+    """The third stage: the transient response (bench.real.transient_response), or nothing when it did not run."""
+    if not tr:
+        return []
+    out = ["## Transient response (calibration half, the first 2 s of each step)\n",
+           "How the wheels reach the steady speeds: the steady map's target reached after a dead time (actuator_delay), "
+           "at most at an acceleration on the mean and one on the half-difference (command_accel, ROS "
+           "diff_drive_controller's limits), the encoders reading late (encoder_latency), the gyro reading the wheels' "
+           "difference through the turn stage's chi; fitted in closed form, without simulation, on every calibration "
+           "step (`bench.real.transient_response`).  The testbed's own response (its PIDs, motors and chassis), simulated "
+           "on the same transitions and fitted the same way, is the reference: a parameter is adopted when holding "
+           "the robot's at the testbed's value raises the weighted sum of squares significantly, its rises per "
+           f"transition, mean over standard error, must exceed {TRANS_Z:g} (one-sided p = 0.001; backward "
+           "elimination).  The adopted values are solved so that the testbed shows the robot's.  None of these "
+           "effects is offered to the simulation stage again.\n"]
+    if not tr["measured"]:
+        return out + [f"- Nothing identified ({tr['note']}).\n"]
+    unit = {"delay": "s", "latency": "s", "accel_mean": "rad/s^2", "accel_diff": "rad/s^2"}
+    out += ["| parameter | robot | testbed (nominal) | statistic | testbed after | adopted |",
+            "|---|---:|---:|---:|---:|---:|"]
+    for k, v in tr["measured"].items():
+        out.append(f"| {k} [{unit[k]}] | {_g(v, 4)} | {_g(tr['testbed_before'].get(k), 4)} | "
+                   f"{_g(tr['statistic'].get(k), 3)} | "
+                   f"{_g(tr['testbed_after'].get(k), 4)} | "
+                   f"{_g(tr['adopted'][k], 4) if k in tr['adopted'] else 'no'} |")
+    out.append(f"\n{tr['n_transitions']} transitions; residual scales {_g(tr['sigma'][0], 3)} rad/s (encoders), "
+               f"{_g(tr['sigma'][1], 3)} rad/s (gyro).\n")
+    return out
+
+
 def _command_path(doc: Mapping[str, Any], kept: list[str]) -> str:
     """Who modelled the robot's command path in this run: the steady stage, the simulation's selection, or no one."""
     cr = doc.get("command_response")
@@ -224,7 +262,13 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
     out = []
     kept = [e["name"] for e in wf["effects"] + wf["partial_candidates"]]
     hc = ho["cost"]
-    if kept:
+    v = doc.get("validation") or {}
+    if kept and not v.get("kept", True):
+        out.append(f"- The fit block's effects ({', '.join(kept)}) raised the mean cost on the calibration steps "
+                   f"outside it ({_g(v['start_mean'])} -> {_g(v['final_mean'])}) and were not kept: the final model is "
+                   f"the start model ({_g(hc['before_mean'])} -> {_g(hc['after_mean'])} held out).")
+        kept = []
+    elif kept:
         better = hc["after_mean"] < hc["before_mean"]
         one = len(kept) == 1
         verb = ("lowers" if one else "lower") if better else ("does not lower" if one else "do not lower")

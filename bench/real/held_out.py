@@ -31,17 +31,20 @@ def final_config(res: GapResult, scn: Any) -> ModelConfig:
     return cfg
 
 
-def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None) -> dict[str, Any]:
+def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None, keep: bool = True,
+                   nominal: bool = True) -> dict[str, Any]:
     """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
     noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
     alignment as inside the workflow).  ``start``: the scenario the workflow started from when it is not the
     nominal ``scenario`` (the steady stages of :mod:`bench.real.command_response` / ``turn_response`` applied); the final
     model is then ``res`` on top of it, each model replayed from the initial state it settles on, and the start
-    model's own cost is ``cost["start"]``."""
+    model's own cost is ``cost["start"]``.  ``keep=False``: the final model is the start model itself (the fit
+    block's effects were not kept, :func:`bench.real.gap.validate`).  ``nominal=False`` with a ``start``: the nominal
+    model is not simulated (no ``"before"`` cost or residuals)."""
     run = run.without_truth()
     space = build_space(run, regimes_for(scenario.platform))
     out: dict[str, Any] = {"space": space, "cost": {}, "raw": {}}
-    models = [("before", scenario, False)]
+    models = [("before", scenario, False)] if nominal or start is None else []
     if start is not None:
         models.append(("start", start, False))
     models.append(("after", scenario if start is None else start, True))
@@ -52,7 +55,7 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None) -
             evs[id(scn)] = (rscn, Evaluator(rscn, measured_grid(run, space.t, init, scn), space, testbed_trace,
                                             workers=1))
         rscn, ev = evs[id(scn)]
-        sig = ev.signals(final_config(res, rscn) if final else nominal_config(rscn))
+        sig = ev.signals(final_config(res, rscn) if final and keep else nominal_config(rscn))
         if key != "start":
             out["raw"][key] = space.raw(sig)
         out["cost"][key] = space.cost(sig)
