@@ -221,24 +221,24 @@ def _transient_section(tr: Mapping[str, Any] | None) -> list[str]:
         return []
     out = ["## Transient response (calibration half, the first 2 s of each step)\n",
            "How the wheels reach the steady speeds: the steady map's target reached after a dead time (actuator_delay), "
-           "at most at an acceleration on the mean and one on the half-difference (command_accel, ROS "
-           "diff_drive_controller's limits), the encoders reading late (encoder_latency), the gyro reading the wheels' "
-           "difference through the turn stage's chi; fitted in closed form, without simulation, on every calibration "
-           "step (`bench.real.transient_response`).  The testbed's own response (its PIDs, motors and chassis), simulated "
-           "on the same transitions and fitted the same way, is the reference: a parameter is adopted when holding "
-           "the robot's at the testbed's value raises the weighted sum of squares significantly, its rises per "
-           f"transition, mean over standard error, must exceed {TRANS_Z:g} (one-sided p = 0.001; backward "
-           "elimination).  The adopted values are solved so that the testbed shows the robot's.  None of these "
-           "effects is offered to the simulation stage again.\n"]
+           "at most at an acceleration on the mean and one on the half-difference (command_accel, limits as ROS "
+           "diff_drive_controller applies them), the encoders reading late (encoder_latency), the gyro reading the "
+           "wheels' difference through the turn stage's chi; fitted in closed form, without simulation, on every "
+           "calibration step (`bench.real.transient_response`).  The testbed has a response of its own (its PIDs, motors "
+           "and chassis), so it is simulated on the same transitions and fitted the same way, and the values are solved "
+           "so that it shows the robot's.  A parameter is kept when the robot's transients fit significantly worse "
+           "under the testbed's chain without it than with it: the rises per transition, mean over standard error, "
+           f"above {TRANS_Z:g} (one-sided p = 0.001; backward elimination; the statistic below).  None of these effects "
+           "is offered to the simulation stage again.\n"]
     if not tr["measured"]:
         return out + [f"- Nothing identified ({tr['note']}).\n"]
     unit = {"delay": "s", "latency": "s", "accel_mean": "rad/s^2", "accel_diff": "rad/s^2"}
     out += ["| parameter | robot | testbed (nominal) | statistic | testbed after | adopted |",
             "|---|---:|---:|---:|---:|---:|"]
+    g = (lambda x: "0" if x is not None and abs(x) < 1e-9 else _g(x, 4))  # a fit's round-off at a zero bound
     for k, v in tr["measured"].items():
-        out.append(f"| {k} [{unit[k]}] | {_g(v, 4)} | {_g(tr['testbed_before'].get(k), 4)} | "
-                   f"{_g(tr['statistic'].get(k), 3)} | "
-                   f"{_g(tr['testbed_after'].get(k), 4)} | "
+        out.append(f"| {k} [{unit[k]}] | {g(v)} | {g(tr['testbed_before'].get(k))} | "
+                   f"{_g(tr['statistic'].get(k), 3)} | {g(tr['testbed_after'].get(k))} | "
                    f"{_g(tr['adopted'][k], 4) if k in tr['adopted'] else 'no'} |")
     out.append(f"\n{tr['n_transitions']} transitions; residual scales {_g(tr['sigma'][0], 3)} rad/s (encoders), "
                f"{_g(tr['sigma'][1], 3)} rad/s (gyro).\n")
