@@ -50,25 +50,26 @@ from bench.sim import simulate
 from bench.sim.startup import initial_wheel_speeds
 from bench.spec import Scenario
 
-__all__ = ["Transition", "TransientResponse", "transitions", "predict", "fit_transient",
-           "identify_transient_response", "TRANSIENT", "MIN_TRANSITIONS", "K_SIM", "ITERATIONS", "TRANSIENT_EFFECTS"]
+__all__ = ["Transition", "TransientResponse", "transitions", "predict", "fit_transient", "rise",
+           "identify_transient_response", "TRANSIENT", "MIN_TRANSITIONS", "K_SIM", "ITERATIONS", "TOLERANCE",
+           "Z_ADOPT", "TRANSIENT_EFFECTS", "NEUTRAL"]
 
 TRANSIENT = 2.0      # [s] the transitory window of a step (DRIVE)
 MIN_TRANSITIONS = 8  # fewer: nothing identified
 K_SIM = 24           # transitions simulated per fixed-point step (evenly spread over the calibration steps)
 ITERATIONS = 4       # fixed-point steps of the testbed correction, at most
 TOLERANCE = {"delay": 0.005, "latency": 0.005, "accel_mean": 0.02, "accel_diff": 0.02}  # [s] / relative: converged
-
-
-def _tolerance(key: str, value: float) -> float:
-    """When the testbed's chain is the robot's (:data:`TOLERANCE`: absolute for times, relative for the limits)."""
-    return TOLERANCE[key] * (abs(value) if key.startswith("accel") else 1.0)
-
 Z_ADOPT = 3.09       # one-sided p = 0.001 on the rise over transitions (:func:`rise`)
 # parameter -> (catalogue effect, index of its parameter there); neutral values in NEUTRAL
 TRANSIENT_EFFECTS = {"delay": ("actuator_delay", 0), "latency": ("encoder_latency", 0),
                      "accel_mean": ("command_accel", 0), "accel_diff": ("command_accel", 1)}
 NEUTRAL = {"delay": 0.0, "latency": 0.0, "accel_mean": math.inf, "accel_diff": math.inf}
+_START = {"delay": 0.2, "latency": 0.1, "accel_mean": 5.0, "accel_diff": 3.0}  # where each fit starts
+
+
+def _tolerance(key: str, value: float) -> float:
+    """When the testbed's chain is the robot's (:data:`TOLERANCE`: absolute for times, relative for the limits)."""
+    return TOLERANCE[key] * (abs(value) if key.startswith("accel") else 1.0)
 
 
 def _current(scn: Scenario, key: str) -> float:
@@ -77,8 +78,6 @@ def _current(scn: Scenario, key: str) -> float:
     return {"delay": plat.actuator_delay, "latency": plat.sensors.encoder.latency,
             "accel_mean": plat.command_accel_mean, "accel_diff": plat.command_accel_diff}[key]
 
-
-_START = {"delay": 0.2, "latency": 0.1, "accel_mean": 5.0, "accel_diff": 3.0}
 
 
 @dataclass(frozen=True)
@@ -105,6 +104,8 @@ class Transition:
 
 
 def _samples(run: Run, t_c: float) -> dict[str, np.ndarray]:
+    """The encoders' own samples (the logger's repeats left out) and the gyro's in the first :data:`TRANSIENT` s of
+    ``run``, their times from the command change ``t_c``."""
     te, el = encoder_samples(run, "enc_wl")
     _, er = encoder_samples(run, "enc_wr")
     k = te <= TRANSIENT
@@ -137,6 +138,7 @@ def transitions(runs: Sequence[Run], scn: Scenario) -> list[Transition]:
 
 
 def _wheels(tr: Transition, p: dict[str, float], t: np.ndarray, wheel_limit: float) -> tuple[np.ndarray, np.ndarray]:
+    """Both sides' wheel speeds at times ``t`` (from the command change) under the chain ``p`` (module docstring)."""
     tau = np.maximum(t - p["delay"], 0.0)
     m0, h0 = 0.5 * (tr.w0[0] + tr.w0[1]), 0.5 * (tr.w0[1] - tr.w0[0])
     on = tau > 0.0
