@@ -110,6 +110,27 @@ def test_a_plain_step_asks_for_no_delay_or_latency(seed):
     assert _z(trs, "delay", 0.0) < 3.09 and _z(trs, "latency", 0.0) < 3.09
 
 
+def _testbed_runs(scn, n: int, seed: int) -> list:
+    """``n`` command steps of the testbed ``scn``, from rest and from a moving start by turns, random commands."""
+    rng = np.random.default_rng(seed)
+    runs = []
+    for k in range(n):
+        ul, ur = rng.uniform(-4, 4, 2)
+        cmd = dataclasses.replace(SCN.command, segments=(Segment(0.1, 0.0, 0.0) if k % 2 == 0 else
+                                                         Segment(0.1, 2.0, 2.0), Segment(2.2, float(ul), float(ur))))
+        run = dataclasses.replace(scn, command=cmd, duration=2.2, initial_speed=0.0 if k % 2 == 0 else 2.0 * R)
+        runs.append(simulate(run, seed * 100 + k).without_truth())
+    return runs
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_the_nominal_testbed_as_the_robot_adopts_nothing(seed):
+    """Null case: the robot is the nominal testbed itself (its own sensor noise, other seeds): nothing is adopted, on
+    each of two seeds."""
+    res = identify_transient_response(_testbed_runs(SCN, 16, seed), SCN, 1.9, 1.9)
+    assert res.n_transitions == 16 and res.adopted == {}, res.statistic
+
+
 def test_the_testbed_with_a_hidden_chain_is_recovered_through_its_own_response():
     """The testbed as the robot, with acceleration limits (5, 2 rad/s^2) and an encoder latency (0.12 s) hidden, driven
     through 16 command steps from rest and from a moving start; identified against the nominal testbed: the values the
@@ -118,16 +139,7 @@ def test_the_testbed_with_a_hidden_chain_is_recovered_through_its_own_response()
     and no actuator delay is adopted."""
     hidden = {**get("command_accel").spec_overrides(SCN, (5.0, 2.0)),
               **get("encoder_latency").spec_overrides(SCN, (0.12,))}
-    robot = apply_overrides(SCN, hidden)
-    rng = np.random.default_rng(5)
-    runs = []
-    for k in range(16):
-        ul, ur = rng.uniform(-4, 4, 2)
-        cmd = dataclasses.replace(SCN.command, segments=(Segment(0.1, 0.0, 0.0) if k % 2 == 0 else
-                                                         Segment(0.1, 2.0, 2.0), Segment(2.2, float(ul), float(ur))))
-        scn = dataclasses.replace(robot, command=cmd, duration=2.2, initial_speed=0.0 if k % 2 == 0 else 2.0 * R)
-        runs.append(simulate(scn, 40 + k).without_truth())
-    res = identify_transient_response(runs, SCN, 1.9, 1.9)
+    res = identify_transient_response(_testbed_runs(apply_overrides(SCN, hidden), 16, 5), SCN, 1.9, 1.9)
     assert res.n_transitions == 16
     assert "delay" not in res.adopted
     assert res.adopted["accel_mean"] == pytest.approx(5.0, rel=0.1)
