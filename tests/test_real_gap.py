@@ -287,3 +287,22 @@ def test_validation_keeps_the_fit_blocks_effects_only_if_they_lower_the_mean_cos
     assert G.validate([None, None], None, res)["kept"] is True
     monkeypatch.setattr(G, "step_residuals", fake([]))  # would raise StopIteration if called
     assert G.validate([None], None, SimpleNamespace(effects=[], partial=[]))["kept"] is True
+
+
+def test_a_rejected_fit_leaves_the_start_model_as_final(gap_run: dict, slice30: Path) -> None:
+    """step_residuals(keep=False): the final model is the start model, cost for cost (and the nominal model is not
+    simulated with nominal=False); with keep=True the fit block's effects are on top (a different cost when it kept
+    any)."""
+    from bench.real.held_out import step_residuals
+
+    res, doc = gap_run["result"], gap_run["doc"]
+    run = {r.meta["calib_step"]: r for r in import_drive(slice30, "husky")}[doc["held_out_steps"][0]]
+    scn = load_scenario(SCENARIO)
+    start = replace(scn, platform=replace(scn.platform, command_gain_sum=1.5))
+    off = step_residuals(run, scn, res, start, keep=False)["cost"]
+    assert off["after"] == off["start"]
+    assert "before" not in step_residuals(run, scn, res, start, keep=False, nominal=False)["cost"]
+    on = step_residuals(run, scn, res, start)["cost"]
+    assert on["start"] == off["start"]
+    if res.effects or res.partial:
+        assert on["after"] != off["after"]

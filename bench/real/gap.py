@@ -138,7 +138,7 @@ shear_displacement (17 mm) on top (19.9 %, 85 of 100; median 0.172).
 The transient response (:mod:`bench.real.transient_response`) is the third stage.  On the calibration half's first 2 s
 of each step, DRIVE's per-side first-order lag fits the encoders at an RMS of 1.12 rad/s, and acceleration limits on
 the mean and the half-difference fit them at 0.56: a wheel whose speed barely changes dips while the mean moves faster
-than the turn.  The gyro's dead time (0.14 s) sits below the encoders' (0.31 s).  The testbed's own response matters:
+than the turn.  The gyro's dead time (0.14 s) sits below the encoders' (0.32 s).  The testbed's own response matters:
 the nominal one reads as limits of 42 / 15 rad/s^2, and with the limits adopted its chassis breaks its grip late,
 which reads as a 0.12 s dead time on the gyro; so the values are solved against the testbed, and the robot's gyro
 delay is then not significant (rise -0.05).  Adopted: encoder latency 0.28 s and limits 10.8 / 3.4 rad/s^2 (the
@@ -469,7 +469,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         files = []
         stem = f"{label or doc['platform']}_gap"
         if figure:
-            files.append(_figure(res, held_out, wheel_series(fit_run, scn, res, after), out_dir / f"{stem}.png"))
+            files.append(_figure(res, held_out, wheel_series(fit_run, scn, res, after, keep), out_dir / f"{stem}.png"))
         files.append(_atomic_write_text(out_dir / f"{stem}.json",
                                         dumps_json(_clean(doc), indent=1, sort_keys=True) + "\n"))
         files.append(_atomic_write_text(out_dir / f"{stem}.md", _markdown(doc, figure, stem)))

@@ -264,9 +264,9 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
     hc = ho["cost"]
     v = doc.get("validation") or {}
     if kept and not v.get("kept", True):
-        out.append(f"- The fit block's effects ({', '.join(kept)}) raised the mean cost on the calibration steps "
-                   f"outside it ({_g(v['start_mean'])} -> {_g(v['final_mean'])}) and were not kept: the final model is "
-                   f"the start model ({_g(hc['before_mean'])} -> {_g(hc['after_mean'])} held out).")
+        out.append(f"- The fit block's effects ({', '.join(kept)}) did not lower the mean cost on the calibration "
+                   f"steps outside it ({_g(v['start_mean'])} -> {_g(v['final_mean'])}) and were not kept: the final "
+                   f"model is the start model ({_g(hc['before_mean'])} -> {_g(hc['after_mean'])} held out).")
         kept = []
     elif kept:
         better = hc["after_mean"] < hc["before_mean"]

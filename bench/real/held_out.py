@@ -63,9 +63,10 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None, k
     return out
 
 
-def wheel_series(run: Run, scenario: Any, res: GapResult, start: Any = None) -> dict[str, dict[str, np.ndarray]]:
+def wheel_series(run: Run, scenario: Any, res: GapResult, start: Any = None,
+                 keep: bool = True) -> dict[str, dict[str, np.ndarray]]:
     """For the figure: commanded, measured, nominal-model and final-model wheel speeds of ``run``."""
-    r = step_residuals(run, scenario, res, start)
+    r = step_residuals(run, scenario, res, start, keep)
     sp = r["space"]
     out = {}
     for c, cmd in (("enc_wl", "cmd_wl"), ("enc_wr", "cmd_wr")):

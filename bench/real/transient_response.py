@@ -17,8 +17,10 @@ order (:func:`bench.sim.testbed._references`), in closed form and without simula
 
 with ``t_c`` the time the logged command changes.  DRIVE (Baril et al. 2024) models a per-side first-order lag
 instead; on the Husky's calibration half that fits the encoders at twice the RMS of the rate limits (1.12 against
-0.56 rad/s), because the two sides do not respond on their own: a wheel whose speed barely changes dips while the
-mean moves faster than the turn (this stage's first measurement, before it was adopted).  The gyro carries the
+0.56 rad/s, 85 transitions, encoders only, a dead time fitted with either: an exploration before this stage was
+written, not code of the repository), because the two sides do not respond on their own: a wheel whose speed barely
+changes dips while the mean moves faster than the turn.  The initial state is read the same way on the robot and on
+the testbed (:func:`_start`).  The gyro carries the
 drive's dead time free of the encoders' latency, which is how ``d`` and ``L`` separate.
 
 Each parameter is the catalogue's own (:data:`TRANSIENT_EFFECTS`: ``actuator_delay``, ``encoder_latency``,
@@ -28,7 +30,8 @@ reads as a chain too; so the values are solved so that the testbed, simulated on
 transitions (each step's replay) and fitted the same way, shows the robot's chain (:data:`ITERATIONS` fixed-point
 steps ``p <- p + (p_robot - p_testbed(p))``, within the catalogue's bounds), and each is kept only if the robot's
 transients tell the testbed with it from the testbed without it (backward elimination): the robot's weighted residual
-sum of squares under the testbed's chain without the parameter against with it.  The transition is the unit, since
+sum of squares under the testbed's chain without the parameter (the others solved again without it) against with
+it.  The transition is the unit, since
 its samples share its error: the rises per transition are tested by their mean over its standard error
 (:func:`rise`) against :data:`Z_ADOPT` (one-sided p = 0.001).
 """
@@ -58,7 +61,7 @@ TRANSIENT = 2.0      # [s] the transitory window of a step (DRIVE)
 MIN_TRANSITIONS = 8  # fewer: nothing identified
 K_SIM = 24           # transitions simulated per fixed-point step (evenly spread over the calibration steps)
 ITERATIONS = 4       # fixed-point steps of the testbed correction, at most
-TOLERANCE = {"delay": 0.005, "latency": 0.005, "accel_mean": 0.02, "accel_diff": 0.02}  # [s] / relative: converged
+TOLERANCE = {"delay": 0.01, "latency": 0.01, "accel_mean": 0.05, "accel_diff": 0.05}  # [s] / relative: converged
 Z_ADOPT = 3.09       # one-sided p = 0.001 on the rise over transitions (:func:`rise`)
 # parameter -> (catalogue effect, index of its parameter there); neutral values in NEUTRAL
 TRANSIENT_EFFECTS = {"delay": ("actuator_delay", 0), "latency": ("encoder_latency", 0),
@@ -98,9 +101,20 @@ class Transition:
     t_c: float
     run: Run | None = None  # the step (the replay's source), kept for the testbed correction
 
-    def with_samples(self, sim: Run) -> "Transition":
-        """The same transition read from another Run of the same step (the testbed's)."""
-        return dataclasses.replace(self, **_samples(sim, self.t_c))
+    def with_samples(self, sim: Run, scn: Scenario) -> "Transition":
+        """The same transition read from another Run of the same step (the testbed's), its initial state estimated
+        from that Run's own samples as the robot's was from the robot's (:func:`_start`: the same estimator on both
+        sides, so that its bias, e.g. samples taken after the command change, is the same)."""
+        w0, g0 = _start(sim, scn)
+        return dataclasses.replace(self, **_samples(sim, self.t_c), w0=w0, g0=g0)
+
+
+def _start(run: Run, scn: Scenario) -> tuple[tuple[float, float], float]:
+    """Initial wheel speeds and yaw rate of a step Run as its replay estimates them (:func:`bench.gap.model.
+    replay_scenario`: the first encoder and gyro samples)."""
+    rscn, init = replay_scenario(run, scn)
+    w0 = initial_wheel_speeds(rscn)
+    return (float(w0[0]), float(w0[1])), float(init.yaw_rate)
 
 
 def _samples(run: Run, t_c: float) -> dict[str, np.ndarray]:
@@ -126,14 +140,15 @@ def transitions(runs: Sequence[Run], scn: Scenario) -> list[Transition]:
             continue
         changed = np.flatnonzero((cl != cl[-1]) | (cr != cr[-1]))
         t_c = float(run.t[changed[-1] + 1]) if changed.size else 0.0
-        rscn, init = replay_scenario(run, scn)
-        w0 = initial_wheel_speeds(rscn)
+        samples = _samples(run, t_c)
+        if not (samples["t_enc"].size or samples["t_gz"].size):
+            continue
+        w0, g0 = _start(run, scn)
         m1 = float(np.clip(plat.command_gain_sum * 0.5 * (cl[-1] + cr[-1]), -plat.command_limit_mean,
                            plat.command_limit_mean))
         h1 = float(np.clip(plat.command_gain_diff * 0.5 * (cr[-1] - cl[-1]), -plat.command_limit_diff,
                            plat.command_limit_diff))
-        out.append(Transition(**_samples(run, t_c), w0=(float(w0[0]), float(w0[1])), g0=float(init.yaw_rate),
-                              m1=m1, h1=h1, t_c=t_c, run=run))
+        out.append(Transition(**samples, w0=w0, g0=g0, m1=m1, h1=h1, t_c=t_c, run=run))
     return out
 
 
@@ -182,7 +197,7 @@ def fit_transient(trs: Sequence[Transition], free: Sequence[str], chi: float, wh
         return np.concatenate(out) if out else np.zeros(0)
 
     def per_transition(r: np.ndarray) -> np.ndarray:
-        return np.add.reduceat(r * r, np.r_[0, np.cumsum(sizes)[:-1]]) if r.size else np.zeros(len(trs))
+        return np.bincount(np.repeat(np.arange(len(trs)), sizes), weights=r * r, minlength=len(trs))
 
     x0 = [_START[k] for k in free]
     if sigma is None:
@@ -296,7 +311,7 @@ def identify_transient_response(runs: Sequence[Run], scn: Scenario, chi: float, 
     def testbed(values: dict[str, float]) -> dict[str, float]:
         """The testbed's chain on ``sub`` with ``values`` adopted, fitted as the robot's is."""
         ov = TransientResponse(n, adopted=values).overrides(scn) if values else {}
-        sims = [tr.with_samples(simulated(scn, tr, ov)) for tr in sub]
+        sims = [tr.with_samples(simulated(scn, tr, ov), scn) for tr in sub]
         return fit_transient(sims, everything, chi_testbed, r, track, limit, sigma)[0]
 
     def solve(values: dict[str, float], sig: dict[str, float] | None = None
@@ -324,13 +339,15 @@ def identify_transient_response(runs: Sequence[Run], scn: Scenario, chi: float, 
     stat: dict[str, float] = {}
     while values:  # backward elimination against the testbed with the rest adopted (module docstring)
         base = robot_wss(after)
-        without = {k: testbed({j: v for j, v in values.items() if j != k}) for k in values}
-        z = {k: rise(robot_wss(sig), base) for k, sig in without.items()}
+        without = {}  # each parameter back at the scenario's value, the others solved again without it
+        for k in values:
+            rest = {j: v for j, v in values.items() if j != k}
+            without[k] = solve(rest) if rest else ({}, before)
+        z = {k: rise(robot_wss(sig), base) for k, (_, sig) in without.items()}
         stat.update(z)
         drop = min(z, key=z.get)
         if z[drop] > Z_ADOPT:
             break
-        rest = {k: v for k, v in values.items() if k != drop}
-        values, after = solve(rest, without[drop]) if rest else ({}, before)
+        values, after = without[drop]
     note = "" if values else "the robot's transients are the testbed's"
     return TransientResponse(n, measured, stat, before, after, values, sigma, note)
