@@ -314,12 +314,11 @@ def identify_transient_response(runs: Sequence[Run], scn: Scenario, chi: float, 
         sims = [tr.with_samples(simulated(scn, tr, ov), scn) for tr in sub]
         return fit_transient(sims, everything, chi_testbed, r, track, limit, sigma)[0]
 
-    def solve(values: dict[str, float], sig: dict[str, float] | None = None
-              ) -> tuple[dict[str, float], dict[str, float]]:
+    def solve(values: dict[str, float]) -> tuple[dict[str, float], dict[str, float]]:
         """``p <- p + (p_robot - p_testbed(p))`` on the keys of ``values`` until the testbed shows the robot's chain
         within :data:`TOLERANCE` or held at a bound (at most :data:`ITERATIONS` steps); the values and the testbed's
-        chain (``sig``: the testbed's chain at ``values``, when already simulated)."""
-        sig = testbed(values) if sig is None else sig
+        chain."""
+        sig = testbed(values)
         for _ in range(ITERATIONS):
             new = {k: float(np.clip(v + measured[k] - sig[k], TRANSIENT_LOWER[k], TRANSIENT_BOUNDS[k]))
                    for k, v in values.items()}
