@@ -352,10 +352,11 @@ class StartModel:
 
 
 def start_model(w: DriveWindows, calib_steps: Sequence[int], scn: Any, catalogue: Sequence[Effect],
-                config: GapRunConfig) -> StartModel:
+                config: GapRunConfig, step_runs: Mapping[int, Run] | None = None) -> StartModel:
     """The calibration-half stages before the simulation (module docstring, step 3): the steady command response,
     the steady turn response and the transient response, each on the model the previous one left; what a stage
-    adopts is not offered to the simulation stage again."""
+    adopts is not offered to the simulation stage again.  ``step_runs``: each step's Run (:func:`block_run` of the
+    step alone), built here when not given."""
     catalogue = tuple(catalogue)
     if not config.steady:
         return StartModel(scn, catalogue)
@@ -372,9 +373,11 @@ def start_model(w: DriveWindows, calib_steps: Sequence[int], scn: Any, catalogue
         catalogue = tuple(e for e in catalogue if e.name not in turn.catalogue_without)
     transient, transient_overrides = None, {}
     if config.transient:  # then how the wheels reach those speeds: every calibration step's first seconds
-        plat = to_dict(scn.platform)
         calib = set(int(s) for s in calib_steps)
-        runs = [block_run(w, [s], plat) for s in step_order(w) if int(s) in calib]
+        if step_runs is None:
+            plat = to_dict(scn.platform)
+            step_runs = {int(s): block_run(w, [int(s)], plat) for s in step_order(w) if int(s) in calib}
+        runs = [step_runs[int(s)] for s in step_order(w) if int(s) in calib]
         chi_testbed = turn.chi_final if math.isfinite(turn.chi_final) else turn.chi_nominal
         transient = identify_transient_response(runs, start, turn.chi, chi_testbed)
         transient_overrides = transient.overrides(start)
@@ -430,12 +433,13 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
-    stages = start_model(w, calib_steps, scn, catalogue, config)
+    calib = set(int(s) for s in calib_steps)
+    step_runs = {s: block_run(w, [s], plat) for s in order}  # each step on its own, for every stage that replays one
+    stages = start_model(w, calib_steps, scn, catalogue, config, step_runs)
     start, catalogue = stages.start, stages.catalogue
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
-        calib_set = set(int(s) for s in calib_steps)
-        block = [s for s in order if s in calib_set][: config.n_fit]
-        fit_runs = [block_run(w, [s], plat) for s in block]
+        block = [s for s in order if s in calib][: config.n_fit]
+        fit_runs = [step_runs[s] for s in block]
     else:  # the first n_fit consecutive ones as one run
         block = fit_block(w, calib_steps, config.n_fit)
         fit_runs = [block_run(w, block, plat)]
@@ -443,11 +447,10 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
                    catalogue=catalogue, progress=progress)
     fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
     after = None if start is scn else start
-    calib = set(int(s) for s in calib_steps)
-    validation = validate([block_run(w, [s], plat) for s in order if s in calib and s not in block][: config.n_validation],
+    validation = validate([step_runs[s] for s in order if s in calib and s not in block][: config.n_validation],
                           scn, res, after)
     keep = validation["kept"]
-    steps = [step_residuals(block_run(w, [s], plat), scn, res, after, keep) for s in held]
+    steps = [step_residuals(step_runs[s], scn, res, after, keep) for s in held]
     names = steps[0]["space"].regime_names if steps else ()
     held_out = score_held_out(steps, names)
     tracking = command_tracking(w, float(plat["wheel_radius"]), float(plat["track"]))

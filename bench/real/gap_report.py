@@ -55,9 +55,9 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
     L.extend(_turn_section(doc.get("turn_response")))
     L.extend(_transient_section(doc.get("transient_response")))
     add("## What the workflow names (fit block)\n")
-    if _steady_changed(doc):
-        add("The simulation starts from the nominal model with the steady stages above; its \"nominal\" below is "
-            "that model.\n")
+    if _start_changed(doc):
+        add("The simulation starts from the nominal model with the calibration-half stages above; its \"nominal\" "
+            "below is that model.\n")
     add(f"**Verdict:** {wf['verdict']}\n")
     c = wf["cost"]
     add(f"Cost (weighted normalised mean square; sensor noise alone ~ {_g(c['j_noise'], 3)}): nominal "
@@ -183,8 +183,8 @@ def _steady_section(cr: Mapping[str, Any] | None) -> list[str]:
     return out
 
 
-def _steady_changed(doc: Mapping[str, Any]) -> bool:
-    """Whether a steady stage changed the model the simulation starts from."""
+def _start_changed(doc: Mapping[str, Any]) -> bool:
+    """Whether a calibration-half stage changed the model the simulation starts from."""
     cr, tr, ts = doc.get("command_response"), doc.get("turn_response"), doc.get("transient_response")
     return bool((cr and cr.get("applied")) or (tr and tr.get("adopted")) or (ts and ts.get("adopted")))
 

@@ -1,7 +1,7 @@
 """Held-out scoring of the real-data gap workflow (:mod:`bench.real.gap`): each held-out step replayed
-with the nominal testbed model, with the model the simulation started from (the steady stages of
-:mod:`bench.real.command_response` and :mod:`bench.real.turn_response`, when they changed anything) and with the model the workflow ended with, residuals
-measured - model in
+with the nominal testbed model, with the model the simulation started from (the calibration-half stages of
+:mod:`bench.real.command_response`, :mod:`bench.real.turn_response` and :mod:`bench.real.transient_response`, when they
+changed anything) and with the model the workflow ended with, residuals measured - model in
 :mod:`bench.gap`'s own residual space, pooled over steps per channel and per driving regime."""
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None, k
     """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
     noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
     alignment as inside the workflow).  ``start``: the scenario the workflow started from when it is not the
-    nominal ``scenario`` (the steady stages of :mod:`bench.real.command_response` / ``turn_response`` applied); the final
+    nominal ``scenario`` (the calibration-half stages of :mod:`bench.real.gap.start_model` applied); the final
     model is then ``res`` on top of it, each model replayed from the initial state it settles on, and the start
     model's own cost is ``cost["start"]``.  ``keep=False``: the final model is the start model itself (the fit
     block's effects were not kept, :func:`bench.real.gap.validate`).  ``nominal=False`` with a ``start``: the nominal

@@ -70,6 +70,16 @@ NEUTRAL = {"delay": 0.0, "latency": 0.0, "accel_mean": math.inf, "accel_diff": m
 _START = {"delay": 0.2, "latency": 0.1, "accel_mean": 5.0, "accel_diff": 3.0}  # where each fit starts
 
 
+def _overrides(values: dict[str, float], scn: Scenario) -> dict[str, Any]:
+    """Scenario overrides of parameter ``values`` (the catalogue effects' own fields; a partly set effect keeps its
+    other parameter at the scenario's value)."""
+    out: dict[str, Any] = {}
+    for name in sorted({TRANSIENT_EFFECTS[k][0] for k in values}):
+        keys = sorted((i, k) for k, (n, i) in TRANSIENT_EFFECTS.items() if n == name)
+        out.update(get(name).spec_overrides(scn, tuple(values.get(k, _current(scn, k)) for _, k in keys)))
+    return out
+
+
 def _tolerance(key: str, value: float) -> float:
     """When the testbed's chain is the robot's (:data:`TOLERANCE`: absolute for times, relative for the limits)."""
     return TOLERANCE[key] * (abs(value) if key.startswith("accel") else 1.0)
@@ -183,7 +193,7 @@ def fit_transient(trs: Sequence[Transition], free: Sequence[str], chi: float, wh
     weighted residual sum of squares, and the (encoder, gyro) residual scales used as weights (``sigma``, else each
     channel's RMS under a fit of each channel alone)."""
     free = list(free)
-    lo, hi = [TRANSIENT_LOWER[k] for k in free], [TRANSIENT_BOUNDS[k] for k in free]
+    lo, hi = [TRANSIENT_LOWER[k] for k in free], [TRANSIENT_UPPER[k] for k in free]
     sizes = np.array([2 * tr.t_enc.size + tr.t_gz.size for tr in trs])
 
     def params(x) -> dict[str, float]:
@@ -223,7 +233,7 @@ def _bounds() -> tuple[dict[str, float], dict[str, float]]:
     return lower, upper
 
 
-TRANSIENT_LOWER, TRANSIENT_BOUNDS = _bounds()
+TRANSIENT_LOWER, TRANSIENT_UPPER = _bounds()
 
 
 @dataclass(frozen=True)
@@ -249,14 +259,8 @@ class TransientResponse:
         return sorted({n for n, _ in TRANSIENT_EFFECTS.values()}) if self.measured else []
 
     def overrides(self, scn: Scenario) -> dict[str, Any]:
-        """Scenario overrides of what was adopted (the catalogue effects' own fields; a partly adopted effect keeps
-        its other parameter at the scenario's value)."""
-        out: dict[str, Any] = {}
-        for name in sorted({TRANSIENT_EFFECTS[k][0] for k in self.adopted}):
-            keys = sorted((i, k) for k, (n, i) in TRANSIENT_EFFECTS.items() if n == name)
-            vals = tuple(self.adopted.get(k, _current(scn, k)) for _, k in keys)
-            out.update(get(name).spec_overrides(scn, vals))
-        return out
+        """Scenario overrides of what was adopted (:func:`_overrides`)."""
+        return _overrides(self.adopted, scn)
 
     def to_json(self) -> dict[str, Any]:
         fin = (lambda d: {k: (float(v) if math.isfinite(v) else None) for k, v in d.items()})
@@ -310,7 +314,7 @@ def identify_transient_response(runs: Sequence[Run], scn: Scenario, chi: float, 
 
     def testbed(values: dict[str, float]) -> dict[str, float]:
         """The testbed's chain on ``sub`` with ``values`` adopted, fitted as the robot's is."""
-        ov = TransientResponse(n, adopted=values).overrides(scn) if values else {}
+        ov = _overrides(values, scn)
         sims = [tr.with_samples(simulated(scn, tr, ov), scn) for tr in sub]
         return fit_transient(sims, everything, chi_testbed, r, track, limit, sigma)[0]
 
@@ -320,7 +324,7 @@ def identify_transient_response(runs: Sequence[Run], scn: Scenario, chi: float, 
         chain."""
         sig = testbed(values)
         for _ in range(ITERATIONS):
-            new = {k: float(np.clip(v + measured[k] - sig[k], TRANSIENT_LOWER[k], TRANSIENT_BOUNDS[k]))
+            new = {k: float(np.clip(v + measured[k] - sig[k], TRANSIENT_LOWER[k], TRANSIENT_UPPER[k]))
                    for k, v in values.items()}
             # converged: each key within its tolerance, or held at a bound that the step would cross
             if all(abs(measured[k] - sig[k]) <= _tolerance(k, measured[k]) or new[k] == values[k] for k in values):
