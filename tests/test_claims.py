@@ -53,6 +53,11 @@ def test_ratio_at_and_past_its_value(op, at, past, inside):
     assert ev(c, n=at * 2, d=2.0) is (op in ("<=", ">="))  # the value itself: only the non-strict operators
     assert ev(c, n=NAN, d=2.0) is None and ev(c, n=1.0, d=NAN) is None
     assert ev(c, n=1.0, d=0.0) is None                     # no ratio, never a verdict
+    m = {**c, "margin": "t.m"}  # the ratio's interval must clear the value: inside*2/2 is 0.1 from it
+    assert ev(m, n=inside * 2, d=2.0, m=0.05) is True
+    assert ev(m, n=inside * 2, d=2.0, m=0.15) is False     # the value inside the ratio's interval
+    assert ev(m, n=past * 2, d=2.0, m=0.0) is False
+    assert ev(m, n=inside * 2, d=2.0, m=NAN) is None
 
 
 def test_trend_direction_step_tolerance_and_end_points():
@@ -90,6 +95,10 @@ def test_fails_if_states_the_negation_of_each_kind():
     assert R.fails_if({"kind": "ordering", "metrics": ["t.a", "t.b", "t.c"]}) == "t.a >= t.b or t.b >= t.c (at some step)"
     for op, neg in (("<", ">="), ("<=", ">"), (">", "<="), (">=", "<")):
         assert R.fails_if({"kind": "ratio", "num": "t.n", "den": "t.d", "op": op, "value": 0.95}) == f"t.n / t.d {neg} 0.95"
+    assert R.fails_if({"kind": "ratio", "num": "t.n", "den": "t.d", "op": "<=", "value": 0.9, "margin": "t.m"}) == \
+        "t.n / t.d + t.m > 0.9"
+    assert R.fails_if({"kind": "ratio", "num": "t.n", "den": "t.d", "op": ">", "value": 1.0, "margin": "t.m"}) == \
+        "t.n / t.d - t.m <= 1"
     assert R.fails_if({"kind": "trend", "series": ["t.a", "t.b"], "direction": "decreasing", "tolerance": 0.01}) == \
         "a step of the series rises by more than 0.01, or t.b >= t.a"
     assert R.fails_if({"kind": "trend", "series": ["t.a", "t.b"], "direction": "increasing"}) == \
@@ -120,7 +129,7 @@ def violating(c):
     if kind == "ratio":  # just past the value (den 1: the ratio is the numerator exactly)
         v, op = float(c["value"]), c.get("op", "<=")
         num = {"<": v, "<=": math.nextafter(v, math.inf), ">": v, ">=": math.nextafter(v, -math.inf)}[op]
-        return {c["den"]: 1.0, c["num"]: num}
+        return {c["den"]: 1.0, c["num"]: num, **({c["margin"]: 0.0} if "margin" in c else {})}
     if kind == "trend":  # reversed, each step beyond the tolerance
         sign = 1.0 if c.get("direction", "decreasing") == "decreasing" else -1.0
         step = 2.0 * float(c.get("tolerance", 0.0)) + 1.0
@@ -143,7 +152,8 @@ def satisfying(c):
         return m
     if kind == "ratio":
         v, op = float(c["value"]), c.get("op", "<=")
-        return {c["den"]: 1.0, c["num"]: v - 1.0 if op in ("<", "<=") else v + 1.0}
+        return {c["den"]: 1.0, c["num"]: v - 1.0 if op in ("<", "<=") else v + 1.0,
+                **({c["margin"]: 0.5} if "margin" in c else {})}
     if kind == "trend":
         sign = -1.0 if c.get("direction", "decreasing") == "decreasing" else 1.0
         return {mid: sign * k for k, mid in enumerate(c["series"])}

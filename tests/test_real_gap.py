@@ -238,6 +238,26 @@ def test_per_step_ratio_and_steps_not_lowered(gap_run: dict) -> None:
         assert line.endswith("lowered on every step.")
 
 
+def test_stall_diagnostic_in_the_document_and_report(gap_run: dict) -> None:
+    """The stall diagnostic (bench.real.stall) sits beside the held-out score: per step the robot's and the final
+    model's motion ratio, the stalled steps are those whose measured ratio is below the threshold, the others'
+    ratio of mean costs recomputed from the per-step costs; the report names the steps."""
+    doc = gap_run["doc"]
+    hc, st = doc["held_out"]["cost"], doc["held_out"]["stalls"]
+    meas = [p["motion_measured"] for p in hc["per_step"]]
+    assert all(0.0 <= m < 2.0 for m in meas) and all(0.0 <= p["motion_final"] < 2.0 for p in hc["per_step"])
+    stalled = [s for s, m in zip(doc["held_out_steps"], meas) if m < st["threshold"]]
+    assert st["steps"] == stalled
+    rest = [p for p, m in zip(hc["per_step"], meas) if m >= st["threshold"]]
+    if rest:
+        assert st["others_final_over_nominal"] == pytest.approx(
+            np.mean([p["after"] for p in rest]) / np.mean([p["before"] for p in rest]), rel=1e-12)
+    assert not set(st["calibration_steps"]) & set(doc["held_out_steps"])
+    md = (gap_run["out"] / "husky_gap.md").read_text()
+    line = next(x for x in md.splitlines() if x.startswith("**Stalls**"))
+    assert (f"steps {', '.join(map(str, stalled))};" in line) if stalled else "stalls." in line
+
+
 def test_bounded_run_holds_out_every_test_step() -> None:
     """make reproduce scores the whole test half, not a subset of it (issue 32: 100 Husky steps)."""
     from bench.real.gap import BOUNDED, FULL

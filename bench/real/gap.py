@@ -40,6 +40,9 @@ Protocol (:func:`run_real_gap`):
    the partial candidates when it named nothing), and the
    residuals measured - model are pooled over those steps per channel (RMS [SI], normalised RMS)
    and per driving regime (:func:`bench.real.held_out.score_held_out`).  Nothing from the test steps enters the fit.
+7. **Stalls** (a diagnostic beside the score, :mod:`bench.real.stall`): the steps, held out and calibration, where the
+   robot moved less than :data:`bench.real.stall.STALL_RATIO` of what its wheels imply, the final model's motion on
+   them, their share of the held-out cost and the held-out ratio over the other steps.  It fits nothing.
 
 Outputs (:mod:`bench.real.gap_report`; atomic writes, no wall-clock value, so the same input gives the
 same bytes):
@@ -187,6 +190,7 @@ from bench.real.turn_response import identify_turn_response, steady_turns
 from bench.real.transient_response import identify_transient_response
 from bench.real.gap_report import _figure, _markdown
 from bench.real.held_out import score_held_out, step_residuals, wheel_series
+from bench.real.stall import STALL_RATIO, motion_ratio, run_series, stall_summary
 from bench.real.io import _atomic_write_text
 from bench.real.windows import valid_windows
 from bench.report.io import dumps_json
@@ -453,6 +457,13 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     steps = [step_residuals(step_runs[s], scn, res, after, keep) for s in held]
     names = steps[0]["space"].regime_names if steps else ()
     held_out = score_held_out(steps, names)
+    radius, track = float(plat["wheel_radius"]), float(plat["track"])
+    held_out["stalls"] = {
+        **stall_summary(held, [s["motion"]["measured"] for s in steps], [s["motion"]["final"] for s in steps],
+                        [s["cost"]["before"] for s in steps], [s["cost"]["after"] for s in steps]),
+        "calibration_steps": [s for s in order if s in calib
+                              and motion_ratio(run_series(step_runs[s]), radius, track) < STALL_RATIO],
+        "n_calibration": len(calib)}
     tracking = command_tracking(w, float(plat["wheel_radius"]), float(plat["track"]))
     cmd = np.concatenate([np.abs(w["cmd_wl"]).ravel(), np.abs(w["cmd_wr"]).ravel()])
     enc = np.concatenate([np.abs(w["enc_wl"]).ravel(), np.abs(w["enc_wr"]).ravel()])

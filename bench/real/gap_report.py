@@ -126,6 +126,8 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         add(f"Per step, final / nominal cost: median {_g(q[1], 3)} (quartiles {_g(q[0], 3)}-{_g(q[2], 3)}); "
             + (f"not lowered on step{'s' if len(worse) > 1 else ''} {', '.join(worse)}.\n" if worse
                else "lowered on every step.\n"))
+    if "stalls" in ho:
+        add(_stalls_text(ho["stalls"], hc["n_steps"]))
     add("### Where the held-out residual sits\n")
     add("Regimes from measured signals only (bench.gap.regimes; `climbing` = pitch from the accelerometer, "
         "a_x - dv/dt, above 2 deg and above 3 x the noise of its 0.5 s mean).  Every channel takes part, the pose "
@@ -304,6 +306,27 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
             + " The motor saturation candidate cannot be screened: it needs measured currents, absent in DRIVE "
             "tables.")
     return out
+
+
+def _stalls_text(st: Mapping[str, Any], n_held: int) -> str:
+    """The stall diagnostic of :mod:`bench.real.stall`, one paragraph."""
+    pct = lambda x: f"{100 * x:.0f} %"  # noqa: E731
+    head = (f"**Stalls** (a diagnostic, fits nothing; `bench.real.stall`): a step where the robot moved less than "
+            f"{pct(st['threshold'])} of what its own encoders imply after its first 2 s (ICP displacement and gyro "
+            f"against the ideal differential drive; about 50 % in an ordinary hard turn). ")
+    cal = (f"Calibration half: {len(st['calibration_steps'])} of {st['n_calibration']}"
+           + (f" (step{'s' if len(st['calibration_steps']) > 1 else ''} "
+              f"{', '.join(map(str, st['calibration_steps']))})" if st["calibration_steps"] else "") + ". ")
+    if not st["steps"]:
+        return head + f"None of the {n_held} held-out steps stalls. " + cal + "\n"
+    return (head + f"Held out: {len(st['steps'])} of {n_held} (steps {', '.join(map(str, st['steps']))}; robot "
+            f"{pct(st['measured_median'])} median, the final model {pct(st['model_median'])} on the same steps): they "
+            f"carry {pct(st['share_of_final_cost'])} of the held-out final cost, and over the other {st['n_others']} "
+            f"steps the final model's mean cost is {100 * st['others_final_over_nominal']:.1f} % of the nominal's. "
+            + cal + ("The final model does not stall there: the missing effect is the stall itself (the traction "
+                     "limit of a hard turn), which no effect of the catalogue adds. "
+                     if st["model_median"] >= st["threshold"] else "")
+            + "The score above keeps these steps whole.\n")
 
 
 def _figure(res: GapResult, held_out: Mapping[str, Any], wheels: Mapping[str, Mapping[str, np.ndarray]],

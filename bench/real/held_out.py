@@ -16,6 +16,7 @@ from bench.gap.fit import Evaluator
 from bench.gap.model import measured_grid, replay_scenario, testbed_trace
 from bench.gap.regimes import regimes_for
 from bench.gap.residuals import CHANNELS, UNITS, build_space, local_terms
+from bench.real.stall import motion_ratio, space_series
 from bench.run import Run
 
 MIN_REGIME_SHARE = 0.05  # a regime must hold this share of the held-out samples to be "where"
@@ -35,7 +36,8 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None, k
                    nominal: bool = True) -> dict[str, Any]:
     """Residuals measured - model (nominal and final) of one held-out Run, with the sample regimes,
     noise scales and costs (bench.gap's own residual space: same channels, normalisation and pose
-    alignment as inside the workflow).  ``start``: the scenario the workflow started from when it is not the
+    alignment as inside the workflow), and the motion ratio (:func:`bench.real.stall.motion_ratio`) of the robot and
+    of the final model.  ``start``: the scenario the workflow started from when it is not the
     nominal ``scenario`` (the calibration-half stages of :mod:`bench.real.gap.start_model` applied); the final
     model is then ``res`` on top of it, each model replayed from the initial state it settles on, and the start
     model's own cost is ``cost["start"]``.  ``keep=False``: the final model is the start model itself (the fit
@@ -60,6 +62,9 @@ def step_residuals(run: Run, scenario: Any, res: GapResult, start: Any = None, k
             out["raw"][key] = space.raw(sig)
         out["cost"][key] = space.cost(sig)
     out["j_noise"] = space.j_noise
+    r, track = scenario.platform.wheel_radius, scenario.platform.track
+    out["motion"] = {"measured": motion_ratio(space_series(space), r, track),
+                     "final": motion_ratio(space_series(space, out["raw"]["after"]), r, track)}
     return out
 
 
@@ -158,5 +163,7 @@ def score_held_out(steps: Sequence[dict[str, Any]], regime_names: Sequence[str])
                      "steps_improved_start": int(sum(a < b for a, b in zip(cost_s, cost_b)))}
                     if cost_s and len(cost_s) == len(steps) else {}),
                  "per_step": [{"before": s["cost"]["before"], "after": s["cost"]["after"], "j_noise": s["j_noise"],
-                               **({"start": s["cost"]["start"]} if "start" in s["cost"] else {})} for s in steps]},
+                               **({"start": s["cost"]["start"]} if "start" in s["cost"] else {}),
+                               **({f"motion_{k}": v for k, v in s["motion"].items()} if "motion" in s else {})}
+                              for s in steps]},
     }

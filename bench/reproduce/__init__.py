@@ -40,7 +40,8 @@ platform or terrain, kind "chosen": :mod:`bench.reproduce.sources`) gets the ver
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
-inside the measurement's sampling error is not reported as holding.
+inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one too (the
+half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet its ``<=`` value.
 
 Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
 A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,

@@ -20,7 +20,9 @@ A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
-inside the measurement's sampling error is not reported as holding.  Verdicts are computed from the numbers;
+inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one the same way
+(the half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet a ``<`` / ``<=``
+value (``- margin`` a ``>`` / ``>=`` one).  Verdicts are computed from the numbers;
 nothing is written by hand: "holds", "does not hold", "calibration target" (a testbed parameter was chosen to
 produce the outcome: :mod:`bench.reproduce.sources`), "not evaluated" (a metric is missing or NaN).
 """
@@ -44,7 +46,7 @@ RATIO_OPS = ("<", "<=", ">", ">=")
 DIRECTIONS = ("decreasing", "increasing")
 PUBLISHED_ON = ("real robot",)
 _KIND_FIELDS = {
-    "ordering": ("metrics", "margin"), "ratio": ("num", "den", "op", "value"),
+    "ordering": ("metrics", "margin"), "ratio": ("num", "den", "op", "value", "margin"),
     "trend": ("series", "direction", "tolerance"), "within": ("metric", "value", "tolerance_abs", "tolerance_rel"),
     "flag": ("metric", "expect"),
 }
@@ -58,7 +60,7 @@ def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
     if kind == "ordering":
         return list(claim["metrics"]) + ([claim["margin"]] if "margin" in claim else [])
     if kind == "ratio":
-        return [claim["num"], claim["den"]]
+        return [claim["num"], claim["den"]] + ([claim["margin"]] if "margin" in claim else [])
     if kind == "trend":
         return list(claim["series"])
     return [claim["metric"]]
@@ -159,9 +161,12 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
             return None, f"{claim['den'].split('.')[-1]} = 0: no ratio"
         r = n / d
         op, val = claim.get("op", "<="), float(claim["value"])
-        ok = {"<": r < val, "<=": r <= val, ">": r > val, ">=": r >= val}[op]
+        margin = get(claim["margin"]) if "margin" in claim else 0.0
+        past = r + margin if op in ("<", "<=") else r - margin  # the ratio's interval end nearest the value
+        ok = {"<": past < val, "<=": past <= val, ">": past > val, ">=": past >= val}[op]
         num, den = _labels([claim["num"], claim["den"]])
-        return ok, f"{num} / {den} = {_fmt(n)} / {_fmt(d)} = {_fmt(r)} (claim: {op} {val})"
+        by = f" by more than {claim['margin'].split('.')[-1]} = {_fmt(margin)}" if "margin" in claim else ""
+        return ok, f"{num} / {den} = {_fmt(n)} / {_fmt(d)} = {_fmt(r)} (claim: {op} {val}{by})"
     if kind == "trend":
         vals = [get(m) for m in claim["series"]]
         tol = float(claim.get("tolerance", 0.0))
@@ -192,7 +197,9 @@ def fails_if(claim: Mapping[str, Any]) -> str:
         steps = [f"{a}{m} >= {b}" for a, b in zip(ids, ids[1:])]
         return " or ".join(steps) + (" (at some step)" if len(steps) > 1 else "")
     if kind == "ratio":
-        return f"{claim['num']} / {claim['den']} {_NEGATED[claim.get('op', '<=')]} {float(claim['value']):g}"
+        op = claim.get("op", "<=")
+        m = "" if "margin" not in claim else f" {'+' if op in ('<', '<=') else '-'} {claim['margin']}"
+        return f"{claim['num']} / {claim['den']}{m} {_NEGATED[op]} {float(claim['value']):g}"
     if kind == "trend":
         series, tol = list(claim["series"]), float(claim.get("tolerance", 0.0))
         decreasing = claim.get("direction", "decreasing") == "decreasing"
@@ -223,7 +230,7 @@ def needs_tolerance_origin(claim: Mapping[str, Any]) -> str | None:
     """The field that makes a claim need a ``tolerance_origin`` (a tolerance, margin or a threshold other than a
     plain comparison with 1), or None."""
     kind = claim.get("kind")
-    if kind == "ordering" and "margin" in claim:
+    if kind in ("ordering", "ratio") and "margin" in claim:
         return "margin"
     if kind == "ratio" and float(claim.get("value", 1.0)) != 1.0:
         return "value"

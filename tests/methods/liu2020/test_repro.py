@@ -157,6 +157,7 @@ def test_claim_metrics_are_consistent(repro):
         k = int(m[f"{w}.scenario"])
         assert ratios[k - 1] == max(ratios)
         assert (m[f"{w}.{a}"], m[f"{w}.{b}"]) == (m[f"{pre}s{k}.{a}"], m[f"{pre}s{k}.{b}"])
+        assert m[f"{w}.ratio_half95"] > 0.0  # the claims' margin: finite over >= 2 seeds
     assert m["heading.truth_crossings"] >= 1
     assert m["outage.gnss_fixes_in_outage"] == 0.0
     assert m["outage.ukf_icr.nan_count"] == 0.0 and m["outage.mi_ukf.nan_count"] == 0.0
@@ -317,3 +318,17 @@ def test_the_worst_scenario_is_nan_when_a_scenario_has_no_ratio():
     assert evaluate_claim(claim, got)[0] is None
     out["s2.icr"] = 0.4
     assert _worst(out, "icr", "en_dr", ("s1", "s2", "s3"))["worst_icr_en_dr.scenario"] == 1.0
+
+
+def test_the_worst_scenario_margin_is_the_t_half_width_of_its_per_seed_ratios():
+    """Per-seed ratios 0.45, 0.5, 0.55 in the worst scenario (s1, ratio of means 0.5): half-width
+    t_0.975(2) sd / sqrt(3) = 4.3027 x 0.05 / sqrt(3) (printed t table); the other scenarios' seeds do not enter."""
+    from methods.liu2020.repro.tables import _worst
+
+    out = {"s1.icr": 1.0, "s1.en_dr": 2.0, "s2.icr": 1.0, "s2.en_dr": 4.0, "s3.icr": 1.0, "s3.en_dr": 3.0}
+    per = {"s1": {"icr": np.array([0.9, 1.0, 1.1]), "en_dr": np.array([2.0, 2.0, 2.0])},
+           "s2": {"icr": np.array([1.0, 9.0, 1.0]), "en_dr": np.array([4.0, 4.0, 4.0])},
+           "s3": {"icr": np.array([1.0, 1.0, 1.0]), "en_dr": np.array([3.0, 3.0, 3.0])}}
+    got = _worst(out, "icr", "en_dr", ("s1", "s2", "s3"), per=per)
+    assert got["worst_icr_en_dr.scenario"] == 1.0
+    assert got["worst_icr_en_dr.ratio_half95"] == pytest.approx(4.3027 * 0.05 / math.sqrt(3), rel=1e-4)
