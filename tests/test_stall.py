@@ -95,6 +95,10 @@ def test_without_reference_only_the_yaw_counts_and_missing_channels_give_nan():
     assert math.isnan(motion_ratio(_series(const(0.0), const(0.0), const(0.0), const(0.0)), R, B))
     short = _series(const(1.0), const(2.0), const(0.1), const(0.1), t=np.arange(0.0, SETTLE + 0.2, DT))
     assert math.isnan(motion_ratio(short, R, B))
+    # a reference channel with no finite sample counts as absent: the yaw alone, as without it
+    t = s["enc_wl"][0]
+    blind = {**s, "ref_x": (t, np.full(t.size, np.nan)), "ref_y": (t, np.full(t.size, np.nan))}
+    assert motion_ratio(blind, R, B) == pytest.approx(1.0 / chi, rel=1e-3)
 
 
 def test_space_series_gives_the_model_as_measured_minus_raw():
@@ -117,8 +121,38 @@ def test_stall_summary_hand_arithmetic():
     assert out["share_of_final_cost"] == pytest.approx(18.0 / 24.0)
     assert out["others_final_over_nominal"] == pytest.approx(3.0 / 30.0)
     assert out["n_others"] == 2
+    assert out["model_stalls"] == 0 and out["n_unmeasured"] == 0
     none = stall_summary([1], [0.7], [0.7], [1.0], [0.5])
     assert none["steps"] == [] and math.isnan(none["measured_median"]) and none["others_final_over_nominal"] == 0.5
+    # an unmeasured step (NaN) is in neither group; a model that stalls too is counted
+    mixed = stall_summary([1, 2, 3], [0.1, math.nan, 0.5], [0.05, 0.5, 0.5], [10.0, 100.0, 20.0], [5.0, 50.0, 2.0])
+    assert mixed["steps"] == [1] and mixed["n_others"] == 1 and mixed["n_unmeasured"] == 1
+    assert mixed["model_stalls"] == 1 and mixed["others_final_over_nominal"] == pytest.approx(0.1)
+
+
+def _stalls(**kw):
+    base = {"threshold": 0.2, "steps": [52], "measured_median": 0.067, "model_median": 0.6, "model_stalls": 0,
+            "n_unmeasured": 0, "share_of_final_cost": 0.25, "others_final_over_nominal": 0.0982, "n_others": 9,
+            "calibration_steps": [], "n_calibration": 11}
+    return {**base, **kw}
+
+
+def test_the_report_paragraph_names_steps_and_words_the_cause_as_unmeasured():
+    from bench.real.gap_report import _stalls_text
+
+    one = _stalls_text(_stalls(), 10)
+    assert "Held out: 1 of 10 (step 52; robot 7 % median, the final model 60 %)" in one
+    assert "stalls on none of them" in one and "25 % of the held-out final cost" in one
+    assert "other 9 steps the final model's mean cost is 9.8 % of the nominal's" in one
+    assert "Calibration half: 0 of 11. " in one and "What stops the robot is not measured" in one
+    both = _stalls_text(_stalls(steps=[3, 52], model_stalls=2, model_median=0.1, calibration_steps=[17]), 10)
+    assert "steps 3, 52;" in both and "stalls on all of them" in both and "(step 17)" in both
+    assert "not measured (a hard turn" not in both
+    nan = _stalls_text(_stalls(model_median=math.nan, n_unmeasured=2), 10)
+    assert "the final model not measured" in nan and "2 held-out step(s) without a measured ratio" in nan
+    assert "nan" not in nan.lower().replace("not measured", "")
+    quiet = _stalls_text(_stalls(steps=[]), 10)
+    assert "None of the 10 held-out steps stalls." in quiet
 
 
 HUSKY = Path(__file__).resolve().parents[2] / "shared" / "data" / "drive_husky" / "husky_windows.parquet"

@@ -310,22 +310,26 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
 
 def _stalls_text(st: Mapping[str, Any], n_held: int) -> str:
     """The stall diagnostic of :mod:`bench.real.stall`, one paragraph."""
-    pct = lambda x: f"{100 * x:.0f} %"  # noqa: E731
+    pct = lambda x: f"{100 * x:.0f} %" if math.isfinite(x) else "not measured"  # noqa: E731
+    ids = lambda s: f"step{'s' if len(s) > 1 else ''} {', '.join(map(str, s))}"  # noqa: E731
     head = (f"**Stalls** (a diagnostic, fits nothing; `bench.real.stall`): a step where the robot moved less than "
-            f"{pct(st['threshold'])} of what its own encoders imply after its first 2 s (ICP displacement and gyro "
-            f"against the ideal differential drive; about 50 % in an ordinary hard turn). ")
+            f"{pct(st['threshold'])} of what its own encoders imply after its first 2 s (reference displacement and "
+            f"gyro against the ideal differential drive; about 50 % in an ordinary hard turn). ")
     cal = (f"Calibration half: {len(st['calibration_steps'])} of {st['n_calibration']}"
-           + (f" (step{'s' if len(st['calibration_steps']) > 1 else ''} "
-              f"{', '.join(map(str, st['calibration_steps']))})" if st["calibration_steps"] else "") + ". ")
+           + (f" ({ids(st['calibration_steps'])})" if st["calibration_steps"] else "") + ". ")
+    unmeasured = (f"{st['n_unmeasured']} held-out step(s) without a measured ratio are in neither group. "
+                  if st.get("n_unmeasured") else "")
     if not st["steps"]:
-        return head + f"None of the {n_held} held-out steps stalls. " + cal + "\n"
-    return (head + f"Held out: {len(st['steps'])} of {n_held} (steps {', '.join(map(str, st['steps']))}; robot "
-            f"{pct(st['measured_median'])} median, the final model {pct(st['model_median'])} on the same steps): they "
-            f"carry {pct(st['share_of_final_cost'])} of the held-out final cost, and over the other {st['n_others']} "
-            f"steps the final model's mean cost is {100 * st['others_final_over_nominal']:.1f} % of the nominal's. "
-            + cal + ("The final model does not stall there: the missing effect is the stall itself (the traction "
-                     "limit of a hard turn), which no effect of the catalogue adds. "
-                     if st["model_median"] >= st["threshold"] else "")
+        return head + f"None of the {n_held} held-out steps stalls. " + cal + unmeasured + "\n"
+    n, both = len(st["steps"]), st["model_stalls"]
+    model = ("the final model stalls on none of them" if both == 0 else
+             f"the final model stalls on {both} of them" if both < n else "the final model stalls on all of them")
+    return (head + f"Held out: {n} of {n_held} ({ids(st['steps'])}; robot {pct(st['measured_median'])} median, the "
+            f"final model {pct(st['model_median'])}): {model}. They carry {pct(st['share_of_final_cost'])} of the "
+            f"held-out final cost; over the other {st['n_others']} steps the final model's mean cost is "
+            f"{100 * st['others_final_over_nominal']:.1f} % of the nominal's. " + cal + unmeasured
+            + ("What stops the robot is not measured (a hard turn at the treads' traction limit would; no effect of "
+               "the catalogue stalls a turn). " if both < n else "")
             + "The score above keeps these steps whole.\n")
 
 

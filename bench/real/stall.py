@@ -6,15 +6,15 @@ sides.  Near that limit it can stall: the wheels turn at the commanded speeds wh
 other steps with the same wheel speeds move at 0.3-0.4 m/s and yaw at 0.8 rad/s).  A testbed model that turns as
 the robot usually does cannot follow such a step, and a mean-square score over steps is then carried by the few
 that stall.  This module names them, beside the held-out score of :mod:`bench.real.held_out`; it fits nothing
-and no stage of :mod:`bench.real.gap` uses it.
+and no fitting stage of :mod:`bench.real.gap` reads it.
 
 The measure (:func:`motion_ratio`): after the first :data:`SETTLE` s of a step (DRIVE's transitory window), in
 blocks of :data:`BLOCK` s, the body's motion ``hypot(v, B/2 w_z)`` (``v`` the reference position's displacement
 over the block / its duration, ``w_z`` the gyro's mean) against the motion its wheels imply,
 ``hypot(r (w_l + w_r)/2, B/2 r (w_r - w_l)/B)`` (the ideal differential drive, Wang 2015 eq. (25) with chi = 1),
 summed over the blocks.  1 for a robot that moves as its wheels roll; a skid-steer turning at chi ~ 2.5 is at
-about 0.5; a step below :data:`STALL_RATIO` is a stall.  Without a reference position the translation is left out
-of both sides (the yaw alone).  The same measure is taken on a model's replay (its own wheels, pose and gyro), so
+about 0.5; a step below :data:`STALL_RATIO` is a stall.  Without a reference position (or with fewer than two of its
+samples after the settling) the translation is left out of both sides (the yaw alone).  The same measure is taken on a model's replay (its own wheels, pose and gyro), so
 the report can say whether the model stalls where the robot does.
 """
 from __future__ import annotations
@@ -23,6 +23,8 @@ import math
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+
+from bench.gap.residuals import measured_channels
 
 __all__ = ["STALL_RATIO", "SETTLE", "BLOCK", "motion_ratio", "run_series", "space_series", "stall_summary"]
 
@@ -73,11 +75,11 @@ def motion_ratio(series: Series, radius: float, track: float, settle: float = SE
     wz = _block_means(*(np.asarray(a, float) for a in series["imu_gz"]), edges)
     half = 0.5 * track
     turn_ideal = half * radius * (wr - wl) / track
-    if "ref_x" in series and "ref_y" in series:
-        (tx, x), (_, y) = series["ref_x"], series["ref_y"]
-        v = _displacement(np.asarray(tx, float), np.asarray(x, float), np.asarray(y, float), edges) / block
+    v = (_displacement(*(np.asarray(a, float) for a in (series["ref_x"][0], series["ref_x"][1], series["ref_y"][1])),
+                       edges) / block if "ref_x" in series and "ref_y" in series else np.full(n, np.nan))
+    if np.isfinite(v).any():
         v_ideal = radius * 0.5 * (wl + wr)
-    else:
+    else:  # no usable reference: the yaw alone
         v, v_ideal = np.zeros(n), np.zeros(n)
     moved, ideal = np.hypot(v, half * wz), np.hypot(v_ideal, turn_ideal)
     ok = np.isfinite(moved) & np.isfinite(ideal)
@@ -86,8 +88,10 @@ def motion_ratio(series: Series, radius: float, track: float, settle: float = SE
 
 
 def run_series(run: Any) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """A measured :class:`bench.run.Run`'s channels for :func:`motion_ratio`."""
-    return {c: (run.t, run[c]) for c in ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y") if run.has(c)}
+    """A measured :class:`bench.run.Run`'s channels for :func:`motion_ratio`, the samples the residual space keeps
+    (:func:`bench.gap.residuals.measured_channels`: pose rows the reference sensor reported, wheel speeds not held by
+    the logger), so that a step measures the same here as in :func:`space_series`."""
+    return {c: v for c, v in measured_channels(run).items() if c in ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y")}
 
 
 def space_series(space: Any, raw: Mapping[str, np.ndarray] | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -104,13 +108,15 @@ def stall_summary(steps: Sequence[int], measured: Sequence[float], model: Sequen
                   cost_nominal: Sequence[float], cost_final: Sequence[float],
                   threshold: float = STALL_RATIO) -> dict[str, Any]:
     """Held-out steps whose measured motion ratio is below ``threshold``: their ids, the model's ratio on them
-    (median), their share of the summed final cost, and the final / nominal ratio of the mean costs over the other
-    steps (NaN without any)."""
+    (median, and how many of them the model stalls on too), their share of the summed final cost, and the final /
+    nominal ratio of the mean costs over the steps measured not to stall (NaN without any); a step whose ratio is
+    not measured (NaN) is in neither group, counted in ``n_unmeasured``."""
     meas, mod = np.asarray(measured, float), np.asarray(model, float)
     c0, c1 = np.asarray(cost_nominal, float), np.asarray(cost_final, float)
     stalled = meas < threshold
-    rest = ~stalled
+    rest = meas >= threshold
     return {"threshold": threshold, "steps": [int(s) for s, k in zip(steps, stalled) if k],
+            "model_stalls": int(np.sum(stalled & (mod < threshold))), "n_unmeasured": int(np.sum(np.isnan(meas))),
             "measured_median": float(np.median(meas[stalled])) if stalled.any() else math.nan,
             "model_median": float(np.nanmedian(mod[stalled])) if stalled.any() and np.isfinite(mod[stalled]).any()
             else math.nan,

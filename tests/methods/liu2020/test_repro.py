@@ -320,15 +320,20 @@ def test_the_worst_scenario_is_nan_when_a_scenario_has_no_ratio():
     assert _worst(out, "icr", "en_dr", ("s1", "s2", "s3"))["worst_icr_en_dr.scenario"] == 1.0
 
 
-def test_the_worst_scenario_margin_is_the_t_half_width_of_its_per_seed_ratios():
-    """Per-seed ratios 0.45, 0.5, 0.55 in the worst scenario (s1, ratio of means 0.5): half-width
-    t_0.975(2) sd / sqrt(3) = 4.3027 x 0.05 / sqrt(3) (printed t table); the other scenarios' seeds do not enter."""
+def test_the_worst_scenario_margin_is_the_delta_method_interval_of_its_ratio_of_means():
+    """Seeds a = 0.9, 1.0, 1.1 and b = 1.8, 2.0, 2.4 in the worst scenario (s1): r = 1.0 / (6.2 / 3); the ratio of
+    means' 95 % half-width by the delta method is t_0.975(2) sd(a_i - r b_i) / sqrt(3) / mean(b), t_0.975(2) = 4.3027
+    (printed t table), sd by hand; the other scenarios' seeds do not enter."""
     from methods.liu2020.repro.tables import _worst
 
-    out = {"s1.icr": 1.0, "s1.en_dr": 2.0, "s2.icr": 1.0, "s2.en_dr": 4.0, "s3.icr": 1.0, "s3.en_dr": 3.0}
-    per = {"s1": {"icr": np.array([0.9, 1.0, 1.1]), "en_dr": np.array([2.0, 2.0, 2.0])},
+    a, b = [0.9, 1.0, 1.1], [1.8, 2.0, 2.4]
+    r = 1.0 / (6.2 / 3)
+    d = [x - r * y for x, y in zip(a, b)]
+    sd = math.sqrt(sum((v - sum(d) / 3) ** 2 for v in d) / 2)
+    out = {"s1.icr": 1.0, "s1.en_dr": 6.2 / 3, "s2.icr": 1.0, "s2.en_dr": 4.0, "s3.icr": 1.0, "s3.en_dr": 3.0}
+    per = {"s1": {"icr": np.array(a), "en_dr": np.array(b)},
            "s2": {"icr": np.array([1.0, 9.0, 1.0]), "en_dr": np.array([4.0, 4.0, 4.0])},
            "s3": {"icr": np.array([1.0, 1.0, 1.0]), "en_dr": np.array([3.0, 3.0, 3.0])}}
     got = _worst(out, "icr", "en_dr", ("s1", "s2", "s3"), per=per)
     assert got["worst_icr_en_dr.scenario"] == 1.0
-    assert got["worst_icr_en_dr.ratio_half95"] == pytest.approx(4.3027 * 0.05 / math.sqrt(3), rel=1e-4)
+    assert got["worst_icr_en_dr.ratio_half95"] == pytest.approx(4.3027 * sd / math.sqrt(3) / (6.2 / 3), rel=1e-4)
