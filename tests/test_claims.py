@@ -60,6 +60,33 @@ def test_ratio_at_and_past_its_value(op, at, past, inside):
     assert ev(m, n=inside * 2, d=2.0, m=NAN) is None
 
 
+def test_refuted_only_when_the_whole_interval_is_on_the_failing_side():
+    """A failing claim with a margin: refuted when its interval clears the bound on the failing side, not refuted
+    when the bound lies inside it; None for a holding claim, one without a margin and one not evaluated."""
+    def rf(claim, **metrics):
+        return R.refuted(claim, {f"t.{k}": v for k, v in metrics.items()})
+    o = {"kind": "ordering", "metrics": ["t.a", "t.b"], "margin": "t.m"}
+    assert rf(o, a=1.0, b=2.0, m=0.5) is None                 # holds
+    assert rf(o, a=2.0, b=1.0, m=0.5) is True                 # b - a = -1, interval [-1.5, -0.5]
+    assert rf(o, a=1.2, b=1.0, m=0.5) is False                # interval [-0.7, 0.3] holds 0
+    assert rf(o, a=1.0, b=1.5, m=0.5) is False                # a + m == b: fails, but not refuted
+    assert rf({"kind": "ordering", "metrics": ["t.a", "t.b"]}, a=2.0, b=1.0) is None  # no interval
+    assert rf(o, a=2.0, b=1.0, m=NAN) is None                 # not evaluated
+    three = {"kind": "ordering", "metrics": ["t.a", "t.b", "t.c"], "margin": "t.m"}
+    assert rf(three, a=1.0, b=1.1, c=0.0, m=0.5) is True      # refuted at the second step
+    for op in ("<", "<="):
+        r = {"kind": "ratio", "num": "t.n", "den": "t.d", "op": op, "value": 0.966, "margin": "t.m"}
+        assert rf(r, n=0.9698, d=1.0, m=0.0225) is False       # Liu's mi_vs_ukf: 0.9473 .. 0.9923 holds 0.966
+        assert rf(r, n=1.312, d=1.0, m=0.0194) is True
+        assert rf(r, n=0.9, d=1.0, m=0.01) is None
+    for op in (">", ">="):
+        r = {"kind": "ratio", "num": "t.n", "den": "t.d", "op": op, "value": 1.0, "margin": "t.m"}
+        assert rf(r, n=0.95, d=1.0, m=0.1) is False and rf(r, n=0.8, d=1.0, m=0.1) is True
+    assert rf({"kind": "ratio", "num": "t.n", "den": "t.d", "op": "<=", "value": 0.5}, n=0.9, d=1.0) is None
+    assert rf({"kind": "within", "metric": "t.x", "value": 1.0, "tolerance_abs": 0.1, "margin": "t.m"},
+              x=2.0, m=0.1) is None
+
+
 def test_trend_direction_step_tolerance_and_end_points():
     dec = {"kind": "trend", "series": ["t.a", "t.b", "t.c"], "direction": "decreasing", "tolerance": 0.125}
     assert ev(dec, a=3.0, b=2.0, c=1.0) is True
@@ -361,8 +388,9 @@ def test_calibration_target_and_real_robot_table_in_the_written_report(tmp_path,
     res, = R.reproduce(["p"], results_dir=out, cache_dir=tmp_path / "cache" / "runs", log=lambda s: None)
     claims = {c["id"]: c for c in res.claims}
     assert claims["order"]["holds"] is True and claims["order"]["verdict"] == "calibration target"
-    assert claims["fails"]["verdict"] == "does not hold"
+    assert claims["fails"]["verdict"] == "does not hold" and claims["fails"]["refuted"] is None  # no margin
     report = (out / "REPORT.md").read_text()
+    assert "not refuted: inside the seeds' 95 % interval" not in report.split("## Headline claims")[1]
     assert "vinyl.shear_modulus" in report and "robot.motor.max_power" in report
     assert "testbed: the testbed lacks tire deflection" in report
     assert re.search(r"headline claims \(2\): holding 0; failing 1 \(testbed 1\); calibration targets 1", report)
@@ -464,3 +492,17 @@ def test_committed_failing_paper_claims_carry_a_cause(name: str) -> None:
            if not v["cause"] or v["cause"].get("kind") not in ("method", "testbed", "protocol", "paper")
            or not v["cause"].get("text", "").strip()}
     assert bad == {}
+
+
+def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report():
+    from bench.reproduce.report import NOT_REFUTED, _counts, _verdict
+
+    inside = {"verdict": "does not hold", "holds": False, "refuted": False, "cause": {"kind": "protocol", "text": "x"}}
+    beyond = {**inside, "refuted": True}
+    plain = {**inside, "refuted": None}
+    assert _verdict(inside) == f"**does not hold** ({NOT_REFUTED})"
+    assert _verdict(beyond) == _verdict(plain) == "**does not hold**"
+    assert _verdict({"verdict": "holds", "holds": True, "refuted": False}) == "**holds**"
+    assert _counts([inside, beyond, {"verdict": "holds", "holds": True}]) == \
+        "holding 1; failing 2 (protocol 2, 1 of them not refuted (inside the seeds' interval))"
+    assert _counts([beyond]) == "holding 0; failing 1 (protocol 1)"

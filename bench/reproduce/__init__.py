@@ -41,7 +41,9 @@ platform or terrain, kind "chosen": :mod:`bench.reproduce.sources`) gets the ver
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
 inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one too (the
-half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet its ``<=`` value.
+half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet its ``<=`` value.  A
+failing claim with a margin is *refuted* only when the whole interval lies on the failing side; otherwise the report
+says "not refuted: inside the seeds' 95 % interval" beside "does not hold" (:func:`refuted`).
 
 Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
 A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,
@@ -64,7 +66,7 @@ from typing import Callable
 
 from bench.report.io import atomic_write_json
 from bench.reproduce.claims import (CAUSE_KINDS, CLAIM_KINDS, SCOPES, VERDICTS, claim_metric_ids, evaluate_claim,
-                                    fails_if, row_verdict, verdict)
+                                    fails_if, refuted, row_verdict, verdict)
 from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, claim_result, half_width, list_papers,
                                    load_paper, mean_ci, published_values, reproduce_paper)
 from bench.reproduce.provenance import code_key, git_commit, package_versions
@@ -76,7 +78,7 @@ from bench.reproduce.sources import calibration_targets, parameter_sources
 
 __all__ = [
     "reproduce", "check_declarations", "PAPER_COST_ORDER", "CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "VERDICTS", "claim_metric_ids",
-    "evaluate_claim", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
+    "evaluate_claim", "refuted", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
     "claim_result", "half_width", "list_papers", "load_paper", "mean_ci", "published_values", "reproduce_paper", "code_key",
     "git_commit", "package_versions", "EXTRA_RESULTS", "EXTRAS_BEGIN", "EXTRAS_END", "append_history",
     "claims_document", "link_extras", "metrics_document", "paper_markdown", "write_documents", "write_paper",

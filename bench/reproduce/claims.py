@@ -35,7 +35,7 @@ from typing import Any, Mapping
 from bench.spec import SpecError
 
 __all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "claim_tables", "row_verdict",
-           "row_ratio", "evaluate_claim", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
+           "row_ratio", "evaluate_claim", "refuted", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
 CAUSE_KINDS = ("method", "testbed", "protocol", "paper")
@@ -182,6 +182,23 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
         v = get(claim["metric"])
         return bool(v) == bool(claim.get("expect", True)), f"{claim['metric'].split('.')[-1]} = {_fmt(bool(v))}"
     raise ValueError(f"unknown claim kind {kind}")
+
+
+def refuted(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | None:
+    """For a failing claim with a ``margin`` (the seeds' 95 % interval): True when the interval lies wholly on the
+    failing side (an ordering: ``a - margin > b`` at some step; a ratio: ``num / den - margin`` past a ``<`` / ``<=``
+    value, ``+ margin`` short of a ``>`` / ``>=`` one), False when the bound lies inside it (the seeds cannot tell:
+    not refuted).  None when the claim holds, is not evaluated or has no margin (no interval to read)."""
+    holds, _ = evaluate_claim(claim, metrics)
+    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio"):
+        return None
+    m = _number(metrics.get(claim["margin"]))
+    if claim["kind"] == "ordering":
+        vals = [_number(metrics.get(x)) for x in claim["metrics"]]
+        return any(a - m > b for a, b in zip(vals, vals[1:]))
+    r = _number(metrics.get(claim["num"])) / _number(metrics.get(claim["den"]))
+    val = float(claim["value"])
+    return r - m > val if claim.get("op", "<=") in ("<", "<=") else r + m < val
 
 
 _NEGATED = {"<": ">=", "<=": ">", ">": "<=", ">=": "<"}

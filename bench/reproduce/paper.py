@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bench.report.io import atomic_path
-from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if,
+from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, refuted,
                                     row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
@@ -110,11 +110,12 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
 def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str]) -> dict[str, Any]:
     """A declared claim with its evaluation: holds (True / False / None), the measured numbers, the verdict (a claim a
     testbed parameter was chosen for is a calibration target: :func:`bench.reproduce.sources.calibration_targets`),
-    the result that would fail it, and the note of the compute functions (``why``)."""
+    the result that would fail it, whether a failing claim with a margin is refuted beyond the seeds' interval
+    (:func:`bench.reproduce.claims.refuted`) and the note of the compute functions (``why``)."""
     holds, text = evaluate_claim(c, metrics)
     chosen = calibration_targets().get(f"{paper}.{c['id']}", [])
     return {**c, "scope": c.get("scope", "paper"), "headline": bool(c.get("headline", False)),
-            "holds": holds, "measured": text, "verdict": verdict(holds, chosen),
+            "holds": holds, "measured": text, "verdict": verdict(holds, chosen), "refuted": refuted(c, metrics),
             "fails_if": c.get("fails_if") or fails_if(c), "fails_if_engine": fails_if(c),
             "calibration": [{"parameter": s.name, "file": s.file, "ref": s.ref} for s in chosen],
             "why": notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")}

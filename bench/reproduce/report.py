@@ -107,9 +107,12 @@ def _groups(claims: Iterable[Mapping[str, Any]]) -> dict[str, list[Mapping[str, 
     return out
 
 
+NOT_REFUTED = "not refuted: inside the seeds' 95 % interval"
+
+
 def _verdict(c: Mapping[str, Any]) -> str:
     v = c.get("verdict") or {True: "holds", False: "does not hold", None: "not evaluated"}[c["holds"]]
-    return _BOLD.get(v, v)
+    return _BOLD.get(v, v) + (f" ({NOT_REFUTED})" if v == "does not hold" and c.get("refuted") is False else "")
 
 
 def _cause(c: Mapping[str, Any], more: str | None, with_note: bool = True) -> str:
@@ -254,7 +257,8 @@ def claims_document(results: list[PaperResult], quick: bool) -> dict[str, Any]:
     for res in results:
         for c in res.claims:
             claims[f"{res.paper}.{c['id']}"] = {
-                "verdict": c.get("verdict"), "holds": c["holds"], "scope": c.get("scope", "paper"),
+                "verdict": c.get("verdict"), "holds": c["holds"], "refuted": c.get("refuted"),
+                "scope": c.get("scope", "paper"),
                 "headline": bool(c.get("headline")), "kind": c["kind"], "measured": c["measured"],
                 "fails_if": c.get("fails_if"), "cause": c.get("cause") if c["holds"] is False else None,
                 "calibration": [p["parameter"] for p in c.get("calibration", [])],
@@ -263,7 +267,8 @@ def claims_document(results: list[PaperResult], quick: bool) -> dict[str, Any]:
 
 
 def _counts(claims: list[Mapping[str, Any]], causes: bool = True) -> str:
-    """"holding 3; failing 2 (method 1, no cause given 1); calibration targets 1; not evaluated 1"."""
+    """"holding 3; failing 2 (method 1, no cause given 1, 1 of them not refuted (inside the seeds' interval));
+    calibration targets 1; not evaluated 1"."""
     if not claims:
         return "none"
     v = [c.get("verdict") for c in claims]
@@ -273,8 +278,10 @@ def _counts(claims: list[Mapping[str, Any]], causes: bool = True) -> str:
     for c in failing:
         k = c["cause"]["kind"] if c.get("cause") else "no cause given"
         by[k] = by.get(k, 0) + 1
-    parts.append(f"failing {len(failing)}" + (f" ({', '.join(f'{k} {n}' for k, n in sorted(by.items()))})"
-                                             if failing and causes else ""))
+    inside = sum(c.get("refuted") is False for c in failing)
+    detail = [f"{k} {n}" for k, n in sorted(by.items())] if causes else []
+    detail += [f"{inside} of them not refuted (inside the seeds' interval)"] if inside else []
+    parts.append(f"failing {len(failing)}" + (f" ({', '.join(detail)})" if failing and detail else ""))
     for name in ("calibration target", "not evaluated"):
         if v.count(name):
             parts.append(f"{name}{'s' if name.endswith('target') else ''} {v.count(name)}")
@@ -313,7 +320,8 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         + f"; CPU dispatch: {dispatch_state()} (bench.cpu).", "",
         "Every verdict is computed from the numbers: **holds**, **does not hold** (with its cause: `method` the testbed "
         "has the physics the claim rests on, `testbed` an effect it lacks, `protocol` our experiment differs, `paper` "
-        "the paper contradicts itself), *calibration target* (a testbed parameter was chosen to produce this outcome: "
+        "the paper contradicts itself; a claim scored against the seeds' 95 % interval that fails inside it is marked "
+        "*not refuted*: the seeds cannot tell it from the bound), *calibration target* (a testbed parameter was chosen to produce this outcome: "
         "never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
         "are listed apart, per paper.", "",
         "## Headline claims", "", "| paper | claim | verdict | cause | key numbers |", "|---|---|---|---|---|",
