@@ -13,9 +13,9 @@ blocks of :data:`BLOCK` s, the body's motion ``hypot(v, B/2 w_z)`` (``v`` the re
 over the block / its duration, ``w_z`` the gyro's mean) against the motion its wheels imply,
 ``hypot(r (w_l + w_r)/2, B/2 r (w_r - w_l)/B)`` (the ideal differential drive, Wang 2015 eq. (25) with chi = 1),
 summed over the blocks.  1 for a robot that moves as its wheels roll; a skid-steer turning at chi ~ 2.5 is at
-about 0.5; a step below :data:`STALL_RATIO` is a stall.  Without a reference position (or with fewer than two of its
-samples after the settling) the translation is left out of both sides (the yaw alone).  The same measure is taken on a model's replay (its own wheels, pose and gyro), so
-the report can say whether the model stalls where the robot does.
+about 0.5; a step below :data:`STALL_RATIO` is a stall.  Without a reference position (or with fewer than two of
+its samples) the translation is left out of both sides (the yaw alone).  The same measure is taken on a model's
+replay (its own wheels, pose and gyro), so the report can say whether the model stalls where the robot does.
 """
 from __future__ import annotations
 
@@ -75,8 +75,10 @@ def motion_ratio(series: Series, radius: float, track: float, settle: float = SE
     wz = _block_means(*(np.asarray(a, float) for a in series["imu_gz"]), edges)
     half = 0.5 * track
     turn_ideal = half * radius * (wr - wl) / track
-    v = (_displacement(*(np.asarray(a, float) for a in (series["ref_x"][0], series["ref_x"][1], series["ref_y"][1])),
-                       edges) / block if "ref_x" in series and "ref_y" in series else np.full(n, np.nan))
+    v = np.full(n, np.nan)
+    if "ref_x" in series and "ref_y" in series:  # one sensor: x and y share their sample times
+        (tx, x), (_, y) = series["ref_x"], series["ref_y"]
+        v = _displacement(np.asarray(tx, float), np.asarray(x, float), np.asarray(y, float), edges) / block
     if np.isfinite(v).any():
         v_ideal = radius * 0.5 * (wl + wr)
     else:  # no usable reference: the yaw alone

@@ -321,8 +321,8 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         "Every verdict is computed from the numbers: **holds**, **does not hold** (with its cause: `method` the testbed "
         "has the physics the claim rests on, `testbed` an effect it lacks, `protocol` our experiment differs, `paper` "
         "the paper contradicts itself; a claim scored against the seeds' 95 % interval that fails inside it is marked "
-        "*not refuted*: the seeds cannot tell it from the bound), *calibration target* (a testbed parameter was chosen to produce this outcome: "
-        "never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
+        "*not refuted*: the seeds cannot tell it from the bound), *calibration target* (a testbed parameter was chosen "
+        "to produce this outcome: never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
         "are listed apart, per paper.", "",
         "## Headline claims", "", "| paper | claim | verdict | cause | key numbers |", "|---|---|---|---|---|",
     ]
