@@ -464,7 +464,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         "calibration_steps": [s for s in order if s in calib
                               and motion_ratio(run_series(step_runs[s]), radius, track) < STALL_RATIO],
         "n_calibration": len(calib)}
-    tracking = command_tracking(w, float(plat["wheel_radius"]), float(plat["track"]))
+    tracking = command_tracking(w, radius, track)
     cmd = np.concatenate([np.abs(w["cmd_wl"]).ravel(), np.abs(w["cmd_wr"]).ravel()])
     enc = np.concatenate([np.abs(w["enc_wl"]).ravel(), np.abs(w["enc_wr"]).ravel()])
     doc = {

@@ -50,11 +50,11 @@ def _gmean_per_seed(per: Mapping[str, Mapping[str, np.ndarray]], m: str, keys: A
     return np.exp(np.mean([np.log(np.maximum(per[k][m], 1e-12)) for k in keys], axis=0))
 
 
-def _paired_margins(ev: Evaluation, metric: str) -> dict[str, float]:
-    """The ordering claims' margins: the 95 % half-width of the per-seed paired difference of two methods'
-    ``metric`` (seeds share the testbed physics, so the paired difference carries the sensor noise only)."""
+def _paired_margins(per: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, float]:
+    """The ordering claims' margins: the 95 % half-width of the per-seed paired difference of two methods' scores
+    (``per``: :func:`_per_seed`; seeds share the testbed physics, so the paired difference carries the sensor noise
+    only)."""
     out: dict[str, float] = {}
-    per = _per_seed(ev, metric)
     for k, v in per.items():
         out[f"{k}.margin.icr_en_dr"] = _half_width(v["en_dr"] - v["icr"])
         out[f"{k}.margin.ukf_icr_icr"] = _half_width(v["icr"] - v["ukf_icr"])
@@ -92,7 +92,7 @@ def _table2(ctx: Any, metric: str, reference: str, filename: str) -> dict[str, f
     per = _per_seed(ev, metric)
     out.update(_worst(out, "icr", "en_dr", ev.scenarios, per=per))
     out.update(_worst(out, "mi_ukf", "ukf_icr", ev.scenarios, per=per))
-    out.update(_paired_margins(ev, metric))
+    out.update(_paired_margins(per))
     lines += ["", f"ICR method calibrated on scenarios/liu_calib.toml seed {SETTINGS.calib_seed}: "
               f"y_l = {ev.calib_icr[0]:.3f} m, y_r = {ev.calib_icr[1]:.3f} m, x = {ev.calib_icr[2]:.3f} m; slip model on "
               f"the same run: s_l = {ev.slip_info['s_l']:.4f}, s_r = {ev.slip_info['s_r']:.4f}, "
@@ -137,11 +137,10 @@ def _worst(out: Mapping[str, float], a: str, b: str, scenarios: Any, prefix: str
     ``.ratio_half95``: the half-width of the 95 % Student-t interval of that scenario's ratio of seed means
     ``mean(a) / mean(b)``, the claim's margin, by the delta method: the interval of the mean of the per-seed
     ``a_i - r b_i`` (``r`` the ratio; paired by seed, since the seeds share the physics and change the sensor noise)
-    over ``mean(b)``.  Liu's Sec. V-D
-    summaries ("about 80 %", "about 10 %") are scored on it against the weakest of the paper's own three ratios: the
-    statistic and its threshold then read Table 2 the same way (a geometric mean against the weakest single ratio
-    would let one scenario carry the others).  A scenario without a
-    ratio (NaN) makes all three NaN: the claim is "not evaluated" rather than read on the other two."""
+    over ``mean(b)``.  Liu's Sec. V-D summaries ("about 80 %", "about 10 %") are scored on it against the weakest of
+    the paper's own three ratios: the statistic and its threshold then read Table 2 the same way (a geometric mean
+    against the weakest single ratio would let one scenario carry the others).  A scenario without a ratio (NaN)
+    makes all of them NaN: the claim is "not evaluated" rather than read on the other two."""
     keys = list(scenarios)
     ratio = {key: out[f"{prefix}{key}.{a}"] / out[f"{prefix}{key}.{b}"] for key in keys}
     name = f"{prefix}worst_{a}_{b}"
