@@ -231,6 +231,8 @@ def _check(**fields):
     ({"scope": "ours"}, "claims.c1.scope", "ours"),
     ({"cause": {"kind": "implementation", "text": "a bug"}}, "claims.c1.cause.kind", "implementation"),
     ({"cause": {"kind": "method", "text": "y" * 301}}, "claims.c1.cause.text", None),
+    ({"cause_quick": {"kind": "implementation", "text": "a bug"}}, "claims.c1.cause_quick.kind", "implementation"),
+    ({"cause_quick": {"kind": "protocol", "text": " "}}, "claims.c1.cause_quick.text", " "),
     ({"quote": "q" * 301}, "claims.c1.quote", None),
     ({"headline": True, "value": 0.95}, "claims.c1.tolerance_origin", None),
     ({"headline": True, "scope": "beyond"}, "claims.c1.scope", "beyond"),
@@ -480,13 +482,13 @@ def test_committed_results_have_no_table_cell_over_the_limit() -> None:
     assert {k: v for k, v in bad.items() if v} == {}
 
 
-@pytest.mark.parametrize("name", ["claims.json", "quick/claims_quick.json"])
-def test_committed_failing_paper_claims_carry_a_cause(name: str) -> None:
-    """The shipped verdicts (results/ as committed): every paper claim that does not hold names its cause, of one of
-    the four kinds, with a text; a check beyond the paper never counts among them."""
+@pytest.mark.parametrize("name", ["claims.json", "quick/claims_quick.json", "extended/claims.json"])
+def test_committed_failing_claims_carry_a_cause(name: str) -> None:
+    """The shipped verdicts (results/ as committed): every claim that does not hold, of the paper or a check beyond
+    it, names its cause, of one of the four kinds, with a text."""
     path = Path(__file__).resolve().parents[1] / "results" / name
     claims = json.loads(path.read_text())["claims"]
-    failing = {k: v for k, v in claims.items() if v["verdict"] == "does not hold" and v["scope"] == "paper"}
+    failing = {k: v for k, v in claims.items() if v["verdict"] == "does not hold"}
     assert failing
     bad = {k: v["cause"] for k, v in failing.items()
            if not v["cause"] or v["cause"].get("kind") not in ("method", "testbed", "protocol", "paper")
@@ -495,14 +497,18 @@ def test_committed_failing_paper_claims_carry_a_cause(name: str) -> None:
 
 
 def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report():
-    from bench.reproduce.report import NOT_REFUTED, _counts, _verdict
+    from bench.reproduce.report import NOT_REFUTED, NOT_RESOLVED, _counts, _verdict
 
     inside = {"verdict": "does not hold", "holds": False, "refuted": False, "cause": {"kind": "protocol", "text": "x"}}
     beyond = {**inside, "refuted": True}
     plain = {**inside, "refuted": None}
     assert _verdict(inside) == f"**does not hold** ({NOT_REFUTED})"
+    assert _verdict({**inside, "favours": True}) == f"**does not hold** ({NOT_RESOLVED})"
+    assert _verdict({**beyond, "favours": True}) == "**does not hold**"  # refuted: favours is moot
     assert _verdict(beyond) == _verdict(plain) == "**does not hold**"
     assert _verdict({"verdict": "holds", "holds": True, "refuted": False}) == "**holds**"
     assert _counts([inside, beyond, {"verdict": "holds", "holds": True}]) == \
         "holding 1; failing 2 (protocol 2, 1 of them not refuted (inside the seeds' interval))"
     assert _counts([beyond]) == "holding 0; failing 1 (protocol 1)"
+    assert _counts([inside, {**inside, "favours": True}]) == \
+        "holding 0; failing 2 (protocol 2, 2 of them not refuted (inside the seeds' interval; the means favour the claim in 1))"

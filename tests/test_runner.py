@@ -2,6 +2,7 @@
 reproduce leaves no half-written file and the next run resumes from the cache."""
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -65,13 +66,26 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
     finally:
         runner_mod.DEFAULT_CACHE = saved
     assert not [p for d in (results, cache) if d.exists() for p in d.rglob(".*.tmp")]
-    # resume: the cached runs are not simulated again
-    from bench.reproduce.league import calibration_set
-    scn = load_scenario("circle_vinyl", {"duration": 12.0})
-    r = Runner(cache_dir=cache)
-    r.simulate_many(calibration_set(scn, quick=True))
-    assert r.stats["cached"] >= len(done_before & {r.path_for(s, seed).name for s, seed in calibration_set(scn, True)})
+    # resume: every run finished before the kill is served from the cache, none simulated again.  The cache key
+    # carries the CPU dispatch (bench.cpu), so the check runs under the pin the killed CLI ran under.
+    from bench.cpu import pinned_env
 
+    snippet = (
+        "import json, sys\n"
+        "from bench.cpu import dispatch_state\n"
+        "from bench.reproduce.league import LEAGUE_SCENARIOS, _league_requests\n"
+        "from bench.reproduce.runner import Runner\n"
+        "r = Runner(cache_dir=sys.argv[1]); done = set(sys.argv[2:])\n"
+        "reqs = [q for n in LEAGUE_SCENARIOS for part in _league_requests(n, True, 2) for q in part]\n"
+        "found = {r.path_for(s, k).name: (s, k) for s, k in reqs if r.path_for(s, k).name in done}\n"
+        "r.simulate_many(list(found.values()))\n"
+        "print(json.dumps({'found': sorted(found), 'stats': [r.stats['cached'], r.stats['simulated']],"
+        " 'dispatch': dispatch_state()}))\n")
+    out = subprocess.run([sys.executable, "-c", snippet, str(cache), *sorted(done_before)], cwd=REPO,
+                         env=pinned_env(env), capture_output=True, text=True, check=True)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["found"] == sorted(done_before), "cached runs that are not the league's requests"
+    assert got["stats"] == [len(done_before), 0], got
 
 def test_league_cells_in_parallel_equal_serial(tmp_path):
     """The league's cells run as process-pool jobs with workers > 1: the same table as serial."""

@@ -30,15 +30,21 @@ def test_a_warm_run_keeps_the_last_cold_table(tmp_path):
     assert not again["this_run"]["cold"] and again["last_cold"]["wall_seconds"] == 250.0
 
 
-def test_the_stage_table_goes_before_the_headline_claims_once(tmp_path):
+def test_the_first_table_is_the_headline_claims_and_the_stage_table_follows_it_once(tmp_path):
+    """Issue 30: REPORT.md's first table lists the headline claims; issue 34: the header says where the time goes
+    (one line, linking the stage table right after the headline claims)."""
     report = tmp_path / "REPORT.md"
-    report.write_text("# report\n\nheader\n\n## Headline claims\n\n| a |\n")
+    report.write_text("# report\n\nheader\n\n## Headline claims\n\n| a |\n|---|\n\n## Per paper\n\ntext\n")
     doc = timing.record(tmp_path, False, _stages(10.0), 30.0, 5, 0, workers=2, cache_was_empty=True)
     timing.insert(report, doc)
     timing.insert(report, doc)
     text = report.read_text()
-    assert text.count("## Where the time goes") == 1
-    assert text.index("## Where the time goes") < text.index("## Headline claims")
+    assert text.count("## Where the time goes") == 1 and text.count("Where the time goes: 30.0 s wall") == 1
+    first_table = next(i for i, line in enumerate(text.splitlines()) if line.startswith("|"))
+    assert text.splitlines()[first_table] == "| a |"
+    assert (text.index("Where the time goes: 30.0 s") < text.index("## Headline claims")
+            < text.index("## Where the time goes") < text.index("## Per paper"))
+    assert "(#where-the-time-goes)" in text and "\n\n\n" not in text
 
 
 def test_quick_and_extended_exclude_each_other():

@@ -43,7 +43,9 @@ standard errors of the difference): it then holds only when a + margin < b at ea
 inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one too (the
 half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet its ``<=`` value.  A
 failing claim with a margin is *refuted* only when the whole interval lies on the failing side; otherwise the report
-says "not refuted: inside the seeds' 95 % interval" beside "does not hold" (:func:`refuted`).
+says "not refuted: inside the seeds' 95 % interval" beside "does not hold" (:func:`refuted`), and "the means favour
+the claim" when the point values alone are on its side (:func:`favours`).  A quick run shows a claim's
+``cause_quick`` when it declares one (its fewer seeds and shorter runs give other numbers, sometimes another reason).
 
 Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
 A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,
@@ -66,7 +68,7 @@ from typing import Callable
 
 from bench.report.io import atomic_write_json
 from bench.reproduce.claims import (CAUSE_KINDS, CLAIM_KINDS, SCOPES, VERDICTS, claim_metric_ids, evaluate_claim,
-                                    fails_if, refuted, row_verdict, verdict)
+                                    fails_if, favours, refuted, row_verdict, verdict)
 from bench.reproduce.paper import (PAPERS_DIR, RESULTS, Context, PaperResult, claim_result, half_width, list_papers,
                                    load_paper, mean_ci, published_values, reproduce_paper)
 from bench.reproduce.provenance import code_key, git_commit, package_versions
@@ -78,7 +80,7 @@ from bench.reproduce.sources import calibration_targets, parameter_sources
 
 __all__ = [
     "reproduce", "check_declarations", "PAPER_COST_ORDER", "CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "VERDICTS", "claim_metric_ids",
-    "evaluate_claim", "refuted", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
+    "evaluate_claim", "refuted", "favours", "fails_if", "row_verdict", "verdict", "PAPERS_DIR", "RESULTS", "Context", "PaperResult",
     "claim_result", "half_width", "list_papers", "load_paper", "mean_ci", "published_values", "reproduce_paper", "code_key",
     "git_commit", "package_versions", "EXTRA_RESULTS", "EXTRAS_BEGIN", "EXTRAS_END", "append_history",
     "claims_document", "link_extras", "metrics_document", "paper_markdown", "write_documents", "write_paper",
@@ -129,8 +131,9 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
     seconds = time.perf_counter() - t0
     for res in results:
         for c in res.claims:
-            if c.get("verdict") == "does not hold" and c.get("scope", "paper") == "paper" and not c.get("cause"):
-                log(f"warning: {res.paper}.{c['id']} does not hold and declares no cause ([claims.cause])")
+            if c.get("verdict") == "does not hold" and not c.get("cause"):
+                log(f"warning: {res.paper}.{c['id']} does not hold and declares no cause "
+                    f"([claims.cause{'_quick' if quick else ''}])")
     suffix = "_quick" if quick else ""
     write_documents(results, results_dir, quick)
     atomic_write_json(results_dir / f"runs_manifest{suffix}.json", runner.manifest)

@@ -17,12 +17,16 @@ A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
     tolerance_origin = "..."       # where a tolerance, margin or threshold other than 1 comes from
     fails_if = "..."               # optional; by default written by :func:`fails_if`
     cause = {kind = "method" | "testbed" | "protocol" | "paper", text = "<= 300 characters"}
+    cause_quick = {kind = ..., text = ...}  # optional: the cause shown by a ``--quick`` run (fewer seeds, shorter
+                                   # runs: its numbers and its reason may differ); without it the quick run shows cause
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
 inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one the same way
 (the half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet a ``<`` / ``<=``
-value (``- margin`` a ``>`` / ``>=`` one).  Verdicts are computed from the numbers;
+value (``- margin`` a ``>`` / ``>=`` one).  A failing claim with a margin is *refuted* only when the whole interval
+lies on the failing side (:func:`refuted`); when it is not, :func:`favours` says whether the means themselves lie on
+the claim's side (it fails only by the interval: the seeds cannot resolve it) or not.  Verdicts are computed from the numbers;
 nothing is written by hand: "holds", "does not hold", "calibration target" (a testbed parameter was chosen to
 produce the outcome: :mod:`bench.reproduce.sources`), "not evaluated" (a metric is missing or NaN).
 """
@@ -35,7 +39,7 @@ from typing import Any, Mapping
 from bench.spec import SpecError
 
 __all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "claim_tables", "row_verdict",
-           "row_ratio", "evaluate_claim", "refuted", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
+           "row_ratio", "evaluate_claim", "refuted", "favours", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
 CAUSE_KINDS = ("method", "testbed", "protocol", "paper")
@@ -51,7 +55,7 @@ _KIND_FIELDS = {
     "flag": ("metric", "expect"),
 }
 _COMMON_FIELDS = ("id", "text", "source", "quote", "headline", "scope", "kind", "tolerance_origin", "fails_if",
-                  "cause", "explain_if_fails")
+                  "cause", "cause_quick", "explain_if_fails")
 
 
 def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
@@ -201,6 +205,16 @@ def refuted(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | No
     return r - m > val if claim.get("op", "<=") in ("<", "<=") else r + m < val
 
 
+def favours(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | None:
+    """For a failing claim with a ``margin``: True when the point values alone (margin 0) are on the claim's side,
+    so that it fails only by the seeds' interval; False when they are against it.  None when the claim holds, is
+    not evaluated or has no margin."""
+    holds, _ = evaluate_claim(claim, metrics)
+    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio"):
+        return None
+    return evaluate_claim({k: v for k, v in claim.items() if k != "margin"}, metrics)[0]
+
+
 _NEGATED = {"<": ">=", "<=": ">", ">": "<=", ">=": "<"}
 
 
@@ -295,17 +309,19 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
             raise err(f, c[f], "a string")
     if len(c.get("quote", "")) > TEXT_LIMIT:
         raise err("quote", _short(c["quote"]), f"at most {TEXT_LIMIT} characters (the paper's own words, verbatim)")
-    if "cause" in c:
-        cause = c["cause"]
+    for key in ("cause", "cause_quick"):
+        if key not in c:
+            continue
+        cause = c[key]
         if not isinstance(cause, Mapping):
-            raise err("cause", cause, "a table {kind = ..., text = ...}")
+            raise err(key, cause, "a table {kind = ..., text = ...}")
         if cause.get("kind") not in CAUSE_KINDS:
-            raise err("cause.kind", cause.get("kind"), f"one of {CAUSE_KINDS} (a defect of ours is fixed, not a cause)")
+            raise err(f"{key}.kind", cause.get("kind"), f"one of {CAUSE_KINDS} (a defect of ours is fixed, not a cause)")
         text = cause.get("text")
         if not isinstance(text, str) or not text.strip():
-            raise err("cause.text", text, "a non-empty string")
+            raise err(f"{key}.text", text, "a non-empty string")
         if len(text) > TEXT_LIMIT:
-            raise err("cause.text", _short(text), f"at most {TEXT_LIMIT} characters")
+            raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters")
     try:
         ids = claim_metric_ids(c)
     except KeyError as exc:

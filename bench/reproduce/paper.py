@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 from bench.report.io import atomic_path
-from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, refuted,
-                                    row_verdict, verdict)
+from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, favours,
+                                    refuted, row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import Runner
@@ -107,15 +107,21 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     return decl
 
 
-def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str]) -> dict[str, Any]:
+def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str],
+                 quick: bool = False) -> dict[str, Any]:
     """A declared claim with its evaluation: holds (True / False / None), the measured numbers, the verdict (a claim a
     testbed parameter was chosen for is a calibration target: :func:`bench.reproduce.sources.calibration_targets`),
     the result that would fail it, whether a failing claim with a margin is refuted beyond the seeds' interval
-    (:func:`bench.reproduce.claims.refuted`) and the note of the compute functions (``why``)."""
+    (:func:`bench.reproduce.claims.refuted`) and whether its means favour it
+    (:func:`bench.reproduce.claims.favours`), its cause (``cause_quick`` in a quick run when declared) and the note
+    of the compute functions (``why``)."""
     holds, text = evaluate_claim(c, metrics)
     chosen = calibration_targets().get(f"{paper}.{c['id']}", [])
-    return {**c, "scope": c.get("scope", "paper"), "headline": bool(c.get("headline", False)),
-            "holds": holds, "measured": text, "verdict": verdict(holds, chosen), "refuted": refuted(c, metrics),
+    out = {k: v for k, v in c.items() if k not in ("cause", "cause_quick")}
+    cause = c.get("cause_quick", c.get("cause")) if quick else c.get("cause")
+    return {**out, **({"cause": cause} if cause else {}), "scope": c.get("scope", "paper"),
+            "headline": bool(c.get("headline", False)), "holds": holds, "measured": text,
+            "verdict": verdict(holds, chosen), "refuted": refuted(c, metrics), "favours": favours(c, metrics),
             "fails_if": c.get("fails_if") or fails_if(c), "fails_if_engine": fails_if(c),
             "calibration": [{"parameter": s.name, "file": s.file, "ref": s.ref} for s in chosen],
             "why": notes.get(c["id"], c.get("explain_if_fails", "") if holds is False else "")}
@@ -240,7 +246,7 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
         tables.append({**tab, "rows_out": rows, "all_metrics": got})
     if step is not None:
         step(len(ran), len(ran), "claims")
-    claims = [claim_result(paper, c, metrics, ctx.notes) for c in decl.get("claims", [])
+    claims = [claim_result(paper, c, metrics, ctx.notes, quick) for c in decl.get("claims", [])
               if not claim_tables(c) & set(skipped)]
     served = sorted(set(runner.served))
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))

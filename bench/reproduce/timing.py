@@ -1,6 +1,7 @@
 """Where the time of a reproduction goes: one row per stage (each paper, with its simulation time, and each extra:
-real, league, gap, stress), this run's and the last cold run's, in ``results/timing.json`` and in REPORT.md's
-header (between two HTML comments, so a rerun replaces the section).
+real, league, gap, stress), this run's and the last cold run's, in ``results/timing.json`` and in REPORT.md: one line
+in its header, the table right after the headline claims (each between two HTML comments, so a rerun replaces
+them; the report's first table stays the headline claims).
 
 A run is *cold* when it computed everything: the run cache was empty at its start and no paper or extra was taken
 from the result cache.  ``timing.json`` keeps the last cold run's table beside the current one, so the committed report shows both
@@ -17,6 +18,7 @@ from bench.report.io import atomic_write_json, atomic_write_text
 from bench.reproduce.provenance import git_commit
 
 BEGIN, END = "<!-- timing: begin -->", "<!-- timing: end -->"
+LINE_BEGIN, LINE_END = "<!-- timing line: begin -->", "<!-- timing line: end -->"
 
 
 def _file(results_dir: Path, quick: bool) -> Path:
@@ -105,15 +107,34 @@ def table(doc: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def summary(doc: Mapping[str, Any]) -> str:
+    """The header's one line: this run's wall time and where the stage table is."""
+    run, cold = doc["this_run"], doc.get("last_cold") or {}
+    last = f"; last cold run {cold['wall_seconds']:.1f} s" if cold else ""
+    return (f"Where the time goes: {run['wall_seconds']:.1f} s wall on {run['workers']} workers "
+            f"({'cold' if run['cold'] else 'warm'}){last}; per stage: [below](#where-the-time-goes).")
+
+
+def _cut(text: str, begin: str, end: str) -> str:
+    if begin in text and end in text:
+        head, _, rest = text.partition(begin)
+        return head + rest.partition(end)[2].lstrip("\n")
+    return text
+
+
 def insert(report: Path, doc: Mapping[str, Any]) -> None:
-    """Put (or replace) the stage table in ``report`` after its header paragraph (before the headline claims)."""
+    """Put (or replace) the header's timing line before the headline claims and the stage table after their table
+    (before the next section)."""
     if not report.is_file():
         return
-    text = report.read_text()
-    if BEGIN in text and END in text:
-        head, _, rest = text.partition(BEGIN)
-        text = head + rest.partition(END)[2].lstrip("\n")
+    text = _cut(_cut(report.read_text(), BEGIN, END), LINE_BEGIN, LINE_END)
+    line = "\n".join([LINE_BEGIN, summary(doc), LINE_END, "", ""])
     section = "\n".join([BEGIN, *table(doc), END, "", ""])
     at = text.find("## Headline claims")
-    text = text[:at] + section + text[at:] if at >= 0 else text + "\n" + section
-    atomic_write_text(report, text)
+    if at < 0:
+        atomic_write_text(report, text + "\n" + line + section)
+        return
+    nxt = text.find("\n## ", at + 1)
+    after = len(text) if nxt < 0 else nxt + 1
+    text = text[:after] + ("" if text[:after].endswith("\n\n") else "\n") + section + text[after:]
+    atomic_write_text(report, text[:at] + line + text[at:])
