@@ -74,10 +74,10 @@ def speed_page(entries: Sequence[Entry], bench_runs: Sequence[BenchRun], nav: st
     secs = [e.seconds for e in entries if e.seconds is not None]
     if secs:
         unit, scale = time_unit(secs)
-        svg, n = runs_chart("c-reproduce-wall-time", "reproduce wall time", entries, lambda e: e.seconds,
+        svg, n = runs_chart("c-reproduce-wall-time", "reproduce wall time (the papers)", entries, lambda e: e.seconds,
                             _cache_series, order=SERIES_ORDER, unit=unit, scale=scale, thin=thin)
         if n:
-            rfigs.append(_figure(svg, "reproduce wall time", _latest(entries, lambda e: e.seconds, unit, scale)))
+            rfigs.append(_figure(svg, "reproduce wall time (the papers)", _latest(entries, lambda e: e.seconds, unit, scale)))
     for stage in sorted({k for e in entries for k in e.stages}):  # bench.reproduce.timing: per stage and run
         vals = [e.stages[stage] for e in entries if stage in e.stages]
         unit, scale = time_unit(vals)
