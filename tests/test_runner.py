@@ -87,6 +87,7 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
     assert got["found"] == sorted(done_before), "cached runs that are not the league's requests"
     assert got["stats"] == [len(done_before), 0], got
 
+
 def test_league_cells_in_parallel_equal_serial(tmp_path):
     """The league's cells run as process-pool jobs with workers > 1: the same table as serial."""
     from bench.reproduce.league import run_league

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from bench.reproduce import timing
 
 REPO = Path(__file__).resolve().parents[1]
@@ -45,6 +47,26 @@ def test_the_first_table_is_the_headline_claims_and_the_stage_table_follows_it_o
     assert (text.index("Where the time goes: 30.0 s") < text.index("## Headline claims")
             < text.index("## Where the time goes") < text.index("## Per paper"))
     assert "(#where-the-time-goes)" in text and "\n\n\n" not in text
+
+
+@pytest.mark.parametrize("body", [
+    "# report\n\nheader\n\n## Headline claims\n\n| a |\n|---|",          # no final newline, no next section
+    "# report\n\nheader\n",                                                  # no headline section at all
+    "# r\n\n<!-- timing: end -->\n\n## Headline claims\n\n| a |\n\n## Per paper\n\nkept\n",  # a stray end marker
+])
+def test_the_timing_sections_settle_after_one_rerun_and_keep_the_rest(tmp_path, body):
+    """Whatever the report looks like, a second insert gives the same file as the first, and no text of the
+    report is lost (a stray end marker before any begin marker is not a section)."""
+    report = tmp_path / "REPORT.md"
+    report.write_text(body)
+    doc = timing.record(tmp_path, False, _stages(10.0), 30.0, 5, 0, workers=2, cache_was_empty=True)
+    timing.insert(report, doc)
+    once = report.read_text()
+    timing.insert(report, doc)
+    assert report.read_text() == once and "\n\n\n" not in once
+    assert once.count("## Where the time goes") == 1 and once.count("Where the time goes: 30.0 s") == 1
+    for piece in ("# r", "header", "| a |", "kept"):
+        assert (piece in once) == (piece in body), piece
 
 
 def test_quick_and_extended_exclude_each_other():

@@ -116,10 +116,15 @@ def summary(doc: Mapping[str, Any]) -> str:
 
 
 def _cut(text: str, begin: str, end: str) -> str:
-    if begin in text and end in text:
-        head, _, rest = text.partition(begin)
-        return head + rest.partition(end)[2].lstrip("\n")
-    return text
+    """``text`` without the first ``begin`` ... ``end`` section (an ``end`` before any ``begin`` is not one)."""
+    i = text.find(begin)
+    j = text.find(end, i) if i >= 0 else -1
+    return text if j < 0 else text[:i] + text[j + len(end):].lstrip("\n")
+
+
+def _para(text: str) -> str:
+    """``text`` ending in exactly one blank line (so that a section put after it is the same on every rerun)."""
+    return text.rstrip("\n") + "\n\n"
 
 
 def insert(report: Path, doc: Mapping[str, Any]) -> None:
@@ -132,9 +137,11 @@ def insert(report: Path, doc: Mapping[str, Any]) -> None:
     section = "\n".join([BEGIN, *table(doc), END, "", ""])
     at = text.find("## Headline claims")
     if at < 0:
-        atomic_write_text(report, text + "\n" + line + section)
+        atomic_write_text(report, _para(text) + line + section.rstrip("\n") + "\n")
         return
     nxt = text.find("\n## ", at + 1)
-    after = len(text) if nxt < 0 else nxt + 1
-    text = text[:after] + ("" if text[:after].endswith("\n\n") else "\n") + section + text[after:]
+    if nxt < 0:
+        text = _para(text) + section.rstrip("\n") + "\n"
+    else:
+        text = _para(text[:nxt + 1]) + section + text[nxt + 1:]
     atomic_write_text(report, text[:at] + line + text[at:])
