@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+import pandas as pd
 
 from bench.reproduce import mean_ci
 from bench.reproduce import published_values as _published_values
@@ -23,7 +24,7 @@ from bench.registry import Estimate
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
 from bench.estimation.ukf import nees as nees_values
-from bench.estimation.ukf import wrap
+from bench.estimation.ukf import FilterError, wrap
 from methods.liu2020 import MiUkfConsistent, SlipDr, UkfIcrConsistent, run_liu_filter
 from methods.liu2020.inputs import geometry
 from methods.liu2020.model import _gnss_block
@@ -268,6 +269,21 @@ def _consistent_method(name: str) -> Any:
         return {c.name: c for c in (UkfIcrConsistent, MiUkfConsistent)}[name]()
 
 
+OUTAGE_COLUMNS = ("x", "y", "yaw", "vx", "vy", "wz", "y_l", "y_r", "x_icr")
+
+
+def _outage_estimate(method: Any, run: Run) -> Estimate:
+    """The estimate through the GNSS outage.  A filter that stops there on a non-finite or non-positive-definite
+    covariance (:class:`bench.estimation.ukf.FilterError`) gives NaN at every step and a NaN covariance, with the
+    error in ``info``: the outage check (``outage.no_nan``) then fails instead of the whole reproduction."""
+    try:
+        return registry.estimate(method, run)
+    except FilterError as exc:
+        n = run.t.size
+        data = pd.DataFrame({"t": run.t} | {c: np.full(n, np.nan) for c in OUTAGE_COLUMNS})
+        return Estimate(data, getattr(method, "name", ""), {"P": np.full((n, 6, 6), np.nan), "error": str(exc)})
+
+
 def _evaluate(ctx: Any) -> Evaluation:
     """Simulate every run (one batch through the runner), calibrate, estimate and score; memoised in
     ``ctx.info`` for the other compute functions of the same reproduction."""
@@ -361,7 +377,7 @@ def _evaluate(ctx: Any) -> Evaluation:
     heading_runs = tuple(runs[("heading", s)] for s in seeds)
     outage_runs = tuple(runs[("outage", s)] for s in seeds)
     heading_est = {f: tuple(registry.estimate(methods[f], r) for r in heading_runs) for f in FILTERS}
-    outage_est = {m: tuple(registry.estimate(meth, r) for r in outage_runs) for m, meth in {**methods, **consistent}.items()}
+    outage_est = {m: tuple(_outage_estimate(meth, r) for r in outage_runs) for m, meth in {**methods, **consistent}.items()}
     ev = Evaluation(tuple(seeds), quick, calib_icr, dict(icr_m.fit_info), results, sweep_stats, s1_liu_stats,
                     nodrift_rms, slip_info, heading_runs, heading_est, outage_runs, outage_est)
     ctx.info[_CACHE_KEY] = ev

@@ -92,6 +92,7 @@ def _table2(ctx: Any, metric: str, reference: str, filename: str) -> dict[str, f
     per = _per_seed(ev, metric)
     out.update(_worst(out, "icr", "en_dr", ev.scenarios, per=per))
     out.update(_worst(out, "mi_ukf", "ukf_icr", ev.scenarios, per=per))
+    out.update(_worst(out, "icr", "slip_dr", ("s2", "s3"), per=per))  # the turning scenarios, each (Sec. VI)
     out.update(_paired_margins(per))
     lines += ["", f"ICR method calibrated on scenarios/liu_calib.toml seed {SETTINGS.calib_seed}: "
               f"y_l = {ev.calib_icr[0]:.3f} m, y_r = {ev.calib_icr[1]:.3f} m, x = {ev.calib_icr[2]:.3f} m; slip model on "
@@ -377,7 +378,9 @@ def outage(ctx: Any) -> dict[str, float]:
         out[f"{m}.err_max_outage"] = float(errs[:, during].max(axis=1).mean())
         out[f"{m}.err_final"] = float(errs[:, -1].mean())
         if m in ALL_FILTERS:
-            min_eig = min(float(np.linalg.eigvalsh(e.info["P"])[:, 0].min()) for e in ests)
+            eigs = [float(np.linalg.eigvalsh(e.info["P"])[:, 0].min()) if np.isfinite(e.info["P"]).all()
+                    else math.nan for e in ests]  # NaN: a filter stopped in the outage (_outage_estimate)
+            min_eig = math.nan if any(math.isnan(x) for x in eigs) else min(eigs)
             out[f"{m}.min_eig_P"] = min_eig
             a3 = np.mean([nees_values(_state_error(r, e)[:, :3], e.info["P"][:, :3, :3]) for r, e in zip(ev.outage_runs, ests)], axis=0)
             out[f"{m}.nees_pose_before"] = float(a3[before].mean())

@@ -16,7 +16,7 @@ import numpy as np
 from methods.yu2010.commands import lemniscate_xy
 from methods.yu2010.plugin import Yu2010
 from methods.yu2010.repro.figures import _figure_dynamic, _new_figure, _save
-from methods.yu2010.repro.runs import _predict, _rms, calibrated_lemniscate, experiments, table_ii_params
+from methods.yu2010.repro.runs import _predict, _rms, calibrated_lemniscate, experiments, ramped_command, table_ii_params
 
 LEMNISCATE_PARAMS = {"K": 0.0009, "mu_sa": 0.6488, "mu_op": 0.4601}  # Yu 2010 Sec. V-C
 RAMP_TIME = 3.0  # [s] Sec. V-C: "commanded at an acceleration of 1 m/s^2 to achieve the initial velocity ... 3 s"
@@ -89,6 +89,13 @@ def fig22_29(ctx: Any) -> dict[str, float]:
     })
     q = model.params
     cal = model.calibration
+    # the kinematic model (Yu eq. (1)) from the same ramped command, with the calibrated expansion factor alpha:
+    # the baseline of the velocity claims (what the dynamic model adds to kinematics)
+    scn0 = ex.scenarios["yu_lemniscate"]
+    cmd = ramped_command(run, scn0.command.accel, scn0.platform.wheel_radius)
+    w_l, w_r = (np.interp(t, *cmd.samples(c)) for c in ("cmd_wl", "cmd_wr"))
+    out["kin_rms_vx"] = _rms((q.r * (w_l + w_r) / 2 - vx)[follow])
+    out["kin_rms_wz"] = _rms((q.r * (w_r - w_l) / (q.alpha * q.B) - wz)[follow])
     out.update({"K_cal": q.K, "mu_sa_cal": q.mu_sa, "mu_op_cal": q.mu_op, "alpha_cal": q.alpha,
                 "mu_roll_cal": q.mu_roll, "converged_cal": float(bool(cal.get("success", False)))})
     turning = follow & (np.abs(wz) > 0.005)

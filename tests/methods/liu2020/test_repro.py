@@ -337,3 +337,29 @@ def test_the_worst_scenario_margin_is_the_delta_method_interval_of_its_ratio_of_
     got = _worst(out, "icr", "en_dr", ("s1", "s2", "s3"), per=per)
     assert got["worst_icr_en_dr.scenario"] == 1.0
     assert got["worst_icr_en_dr.ratio_half95"] == pytest.approx(4.3027 * sd / math.sqrt(3) / (6.2 / 3), rel=1e-4)
+
+
+def test_a_filter_that_stops_in_the_outage_fails_the_outage_check_instead_of_the_run():
+    """outage.no_nan must be able to fail: a filter raising FilterError (non-finite or non-positive-definite
+    covariance) through the outage gives a NaN estimate and covariance with the error kept, which the outage
+    table's flag counts (NaN estimate columns, no finite smallest eigenvalue), instead of aborting the reproduction."""
+    from dataclasses import dataclass
+
+    from bench.estimation.ukf import FilterError
+    from bench.run import from_arrays
+    from methods.liu2020.repro.evaluation import OUTAGE_COLUMNS, _outage_estimate
+
+    @dataclass(frozen=True)
+    class Stops:
+        name: str = "test.stops"
+        requires: frozenset = frozenset()
+
+        def estimate(self, run):
+            raise FilterError(1200, "update", "P not positive definite")
+
+    t = np.arange(0, 5.0, 0.01)
+    run = from_arrays({"t": t, "enc_wl": np.ones_like(t), "enc_wr": np.ones_like(t)}, {"run_id": "synthetic"})
+    est = _outage_estimate(Stops(), run)
+    assert np.array_equal(est.t, t) and all(np.isnan(est[c]).all() for c in OUTAGE_COLUMNS)
+    assert est.info["error"] == "UKF step 1200 (update): P not positive definite" and np.isnan(est.info["P"]).all()
+    assert not np.isfinite(est.info["P"]).all()  # the table's min_eig is then NaN, and NaN > 0 fails the flag
