@@ -408,11 +408,16 @@ def outage(ctx: Any) -> dict[str, float]:
         f"{out['mi_ukf.err_end']:.3f} m; dead reckoning over the same {t1 - t0:g} s from the true pose at {t0:g} s: "
         f"En-DR {out['en_dr.drift_window']:.3f}, ICR {out['icr.drift_window']:.3f} m; consistent configuration "
         + ", ".join(f"{out[f'{m}.err_end']:.3f}" for m in CONSISTENT) + " m."))
+    stopped = "; ".join(f"{LABELS.get(m, m)}: {e.info['error']}" for m in ALL_FILTERS for e in ev.outage_est.get(m, ())
+                        if "error" in e.info)  # a filter that stopped in the outage (evaluation._outage_estimate)
+    health = ("no NaN, but overconfident" if out["no_nan"] else
+              "the check fails: " + (stopped or "a non-finite estimate or covariance, or a GNSS fix inside the outage"))
     ctx.note("outage_no_nan", (
         f"Position error at the end of the outage (t = {t1:g} s): " + ", ".join(
             f"{LABELS[m]} {out[f'{m}.err_end']:.3f} m" for m in METHODS)
         + f"; pose NEES during the outage UKF+ICR {out['ukf_icr.nees_pose_outage']:.1f}, MI-UKF "
-          f"{out['mi_ukf.nees_pose_outage']:.1f} (band [{b3[0]:.2f}, {b3[1]:.2f}]): no NaN, but overconfident. The heading "
+          f"{out['mi_ukf.nees_pose_outage']:.1f} (band [{b3[0]:.2f}, {b3[1]:.2f}]): "
+        + health + ". The heading "
           f"stays good (gyro; |yaw error| at 28 s {out['ukf_icr.yaw_err_end']:.4f} / {out['mi_ukf.yaw_err_end']:.4f} rad); "
           "the error grows from the lateral velocity: without GNSS the online ICR, recomputed from the posterior and fed "
           "back into the encoder pseudo-measurement, has no external anchor and drifts (x_icr "

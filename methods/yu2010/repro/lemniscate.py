@@ -121,7 +121,12 @@ def fig22_29(ctx: Any) -> dict[str, float]:
         "same model without sliding friction (pure rolling, F_f = 0 as in Sec. III-B), the baseline of the torque "
         f"claim. The testbed's effective alpha along the "
         f"curve is {out['tb_alpha_eff']:.3f} (model: {q.alpha:.3f}); the model's speed uses the nominal radius, "
-        "the testbed rolls at its tires' loaded radius (~0.995 r)."
+        "the testbed rolls at its tires' loaded radius (~0.995 r). kin_rms_*: eq. (1) from the same ramped command "
+        f"with the calibrated alpha, the velocity claims' baseline: {out['kin_rms_vx']:.5f} m/s and "
+        f"{out['kin_rms_wz']:.5f} rad/s against the model's {out['rms_vx']:.5f} and {out['rms_wz']:.5f}. Both errors "
+        "are mostly a constant offset (the loaded radius, which both share); what separates them is the wheels' lag "
+        "behind the command, which the model's PID and motors have and eq. (1) has not, on a section where the "
+        "speed rises: on a slowing one that lag could favour eq. (1)."
     ))
     whole = lemniscate_xy(np.linspace(0.0, 2 * math.pi * 50.0, 800))
     # the testbed path placed on the curve: start at the curve point of t0, along its tangent
