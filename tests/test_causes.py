@@ -3,13 +3,12 @@ quick run's own cause (``cause_quick``), and the committed verdicts' consistency
 from __future__ import annotations
 
 import json
-import tomllib
 from pathlib import Path
 
 import pytest
 
 from bench.reproduce import claims as R
-from bench.reproduce.paper import PAPERS_DIR, claim_result
+from bench.reproduce.paper import claim_result, list_papers, load_paper
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
@@ -51,11 +50,7 @@ def test_a_quick_run_shows_cause_quick_and_a_full_run_cause():
 
 
 def _declared() -> dict[str, dict]:
-    out = {}
-    for path in sorted(PAPERS_DIR.glob("*.toml")):
-        for c in tomllib.loads(path.read_text()).get("claims", []):
-            out[f"{path.stem}.{c['id']}"] = c
-    return out
+    return {f"{p}.{c['id']}": c for p in list_papers() for c in load_paper(p).get("claims", [])}
 
 
 def test_committed_quick_failures_that_differ_from_the_full_run_have_a_quick_cause():

@@ -64,10 +64,6 @@ def _paired_margins(per: Mapping[str, Mapping[str, np.ndarray]]) -> dict[str, fl
     g_mi, g_icr = s1["ukf_icr"] - s1["mi_ukf"], s1["en_dr"] - s1["icr"]
     out["s1.gain_mi"], out["s1.gain_icr"] = float(np.mean(g_mi)), float(np.mean(g_icr))
     out["s1.margin.gains"] = _half_width(g_icr - g_mi)
-    # turning scenarios (s2, s3): the ICR model against the slip model, geometric means per seed
-    turn = {m: _gmean_per_seed(per, m, ("s2", "s3")) for m in ("icr", "slip_dr")}
-    out["turning.icr"], out["turning.slip_dr"] = (float(np.mean(turn[m])) for m in ("icr", "slip_dr"))
-    out["turning.margin.icr_slip"] = _half_width(turn["slip_dr"] - turn["icr"])
     return out
 
 
