@@ -37,9 +37,11 @@ Measured behaviour of this design (the testbed paths of the reproduction, tests/
     tread >= its encoder speed, outer <= its: about +-13 % of the speed on the 80/40 rpm circle).
     Schemes 1 and 2 leave v_By and the roll angle unobserved (no row measures them; Sec. IV-B assumes
     the attitude known): the roll estimate wanders inside its initial uncertainty (P0 0.02 rad: no
-    levelling when a run starts moving) and gravity leaks into the lateral velocity, g droll, which
-    integrates twice into the position, so on the 20 s straight line their lateral error dominates
-    (metres), as the paper reports for scheme 1 ("the first scheme has a large error").  The v_z row's
+    levelling when the wheels turn within the 25 levelling samples, as on every scored path) and
+    gravity leaks into the lateral velocity, g droll, which integrates twice into the position, so on
+    the 20 s straight line their lateral error dominates (metres; the paper reports only that "the
+    first scheme has a large error").  How many metres is set by that P0, which the paper does not give:
+    with 0.002 rad (a levelled start) scheme 1 is 0.2-0.7 m there (the reproduction's levelled.* rows).  The v_z row's
     roll column -v_By (25), evaluated at the drifted estimate, reports roll information that does not
     exist, and the roll error grows beyond the gyro's own integration error.  With good sensors and
     10 % net slip the ordering of Fig. 5 (3 <= 2 <= 1) is reproduced on turning paths.

@@ -52,10 +52,11 @@ def evenly_spaced(n_total: int, n: int) -> np.ndarray:
 
 def identify_from_speeds(wl: ArrayLike, wr: ArrayLike, tau_l_meas: ArrayLike, tau_r_meas: ArrayLike,
                          params: YuParams, x0: tuple[float, float, float] | None = None,
-                         indices: np.ndarray | None = None) -> IdentificationResult:
+                         indices: np.ndarray | None = None, fit_K: bool = True) -> IdentificationResult:
     """Eq. (28) on operating points given as steady wheel speeds (w_l, w_r) [rad/s] and the measured
     steady torques; mu_roll and alpha are held at ``params``' values.  ``x0`` (K, mu_sa, mu_op)
-    defaults to ``params``."""
+    defaults to ``params``.  ``fit_K=False`` holds K at its start value and fits mu_sa, mu_op only
+    (with a tiny K: the Coulomb limit of eq. (7), which Yu's Sec. V-A argues against)."""
     wl, wr = np.asarray(wl, float).ravel(), np.asarray(wr, float).ravel()
     tl, tr = np.asarray(tau_l_meas, float).ravel(), np.asarray(tau_r_meas, float).ravel()
     if not (wl.size == wr.size == tl.size == tr.size):
@@ -77,18 +78,21 @@ def identify_from_speeds(wl: ArrayLike, wr: ArrayLike, tau_l_meas: ArrayLike, ta
         return cache[K]
 
     def residuals(z: np.ndarray) -> np.ndarray:
-        K, mu_sa, mu_op = z[0] * k0, z[1], z[2]
+        K, mu_sa, mu_op = (z[0] * k0, z[1], z[2]) if fit_K else (k0, z[0], z[1])
         Fl, Fr = forces(K)
         ml = side_torque(Fl, wl, params, mu_sa=mu_sa, mu_op=mu_op)
         mr = side_torque(Fr, wr, params, mu_sa=mu_sa, mu_op=mu_op)
         return np.concatenate([ml - tl, mr - tr])  # Delta tau_lRes, Delta tau_rRes of eq. (28)
 
-    sol = least_squares(residuals, np.array([1.0, sa0, op0]), bounds=([1e-3, 1e-3, 1e-3], [1e3, 3.0, 3.0]),
-                        x_scale=np.array([0.3, 0.1, 0.1]), xtol=1e-12, ftol=1e-12, gtol=1e-12,
+    z0, lo, hi, xs = np.array([1.0, sa0, op0]), [1e-3, 1e-3, 1e-3], [1e3, 3.0, 3.0], np.array([0.3, 0.1, 0.1])
+    if not fit_K:
+        z0, lo, hi, xs = z0[1:], lo[1:], hi[1:], xs[1:]
+    sol = least_squares(residuals, z0, bounds=(lo, hi), x_scale=xs, xtol=1e-12, ftol=1e-12, gtol=1e-12,
                         diff_step=1e-6, method="trf")
     res = sol.fun
+    x = sol.x if fit_K else np.concatenate([[1.0], sol.x])
     return IdentificationResult(
-        K=float(sol.x[0] * k0), mu_sa=float(sol.x[1]), mu_op=float(sol.x[2]), indices=idx,
+        K=float(x[0] * k0), mu_sa=float(x[1]), mu_op=float(x[2]), indices=idx,
         cost=float(res @ res), rms=float(np.sqrt(np.mean(res**2))), success=bool(sol.success), nfev=int(sol.nfev),
     )
 

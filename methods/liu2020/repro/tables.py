@@ -285,9 +285,10 @@ def icr(ctx: Any) -> dict[str, float]:
         f"mean |yaw rate| s2 {out['s2.abs_wz']:.3f}, s3 {out['s3.abs_wz']:.3f} rad/s (Liu about 0.5 and 1); s3 runs at v_x "
         f"{s3['vx']:.2f} m/s, radius {abs(s3['vx'] / s3['wz']):.2f} m (commanded -1 m/s, 0.5 m)."))
     ctx.note("icr_smoother_s2_vs_s1", (
-        f"Std of y_l, y_r: s2 {out['s2.icr_std']:.3f} m at {out['s2.abs_wz']:.3f} rad/s, scenario 1 as Liu drove it "
-        f"(4 m/s, radius {abs(SETTINGS.s1_liu_radius):g} m) {out['s1_liu.icr_std']:.3f} m at {out['s1_liu.abs_wz']:.3f} rad/s; "
-        f"the testbed straight (|yaw rate| {out['s1.abs_wz']:.1e} rad/s) has no ICR (std {out['s1.icr_std']:.3f})."))
+        f"Std of y_l, y_r: s2 {out['s2.icr_std']:.3f} m at {out['s2.abs_wz']:.3f} rad/s; scenario 1, the scored straight "
+        f"(its bumps turn it both ways) {out['s1.icr_std']:.3f} m at {out['s1.abs_wz']:.3f} rad/s; as Liu drove it "
+        f"(4 m/s, radius {abs(SETTINGS.s1_liu_radius):g} m) {out['s1_liu.icr_std']:.3f} m at {out['s1_liu.abs_wz']:.3f} rad/s. "
+        "The spread is a velocity error over |yaw rate|, Liu's own reason (Sec. V-B-3)."))
     ctx.note("icr_smoother_sweep", "Mean |yaw rate| [rad/s] at radii 17, 8, 4, 2 m: " + ", ".join(
         f"{out[f'sweep_r{r:g}.abs_wz']:.3f}" for r in (17.0, *SETTINGS.sweep_radii)) + ".")
     ctx.note("severe_slip", (

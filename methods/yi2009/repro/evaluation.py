@@ -7,6 +7,7 @@ variant) estimated by the three schemes and scored (:class:`Evaluation`, :class:
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -209,6 +210,8 @@ def _evaluate(ctx: Any) -> Evaluation:
 
     # ---- scored paths
     v3_pub = Yi2009Ekf(variant=3, s_gamma=PUBLISHED_S_GAMMA)
+    levelled = {v: dataclasses.replace(m, params=dataclasses.replace(m.params, p0_rollpitch=cfg.levelled_p0_rollpitch))
+                for v, m in methods.items()}
     results = {}
     for k in PATHS:
         scores: dict[str, list[dict[str, float]]] = {}
@@ -223,6 +226,7 @@ def _evaluate(ctx: Any) -> Evaluation:
                 est = registry.estimate(methods[v], run)
                 scores.setdefault(f"v{v}", []).append(_score(run, est, vis, cfg))
                 scores.setdefault(f"fine_v{v}", []).append(_score(frun, registry.estimate(methods[v], frun), fvis, cfg))
+                scores.setdefault(f"levelled_v{v}", []).append(_score(run, registry.estimate(levelled[v], run), vis, cfg))
                 if i == 0:
                     est0[v] = est
             scores.setdefault("v3_pub", []).append(_score(run, registry.estimate(v3_pub, run), vis, cfg))

@@ -199,7 +199,8 @@ def _order_note(ctx: Any, ev: Evaluation, k: str, out: Mapping[str, float]) -> N
         "Cross-track RMS " + " / ".join(f"{cross[v]:.3g}" for v in VARIANTS) + " m and roll error RMS "
         + " / ".join(f"{roll[v]:.2g}" for v in VARIANTS) + f" rad (schemes 1/2/3; the gyro's direct integration: "
         f"{gyro_roll:.2g} rad): schemes 1 and 2 measure neither v_By nor roll (Sec. IV-B assumes the attitude known); "
-        "the roll estimate wanders inside its initial uncertainty (P0 0.02 rad, no levelling: the run starts moving), "
+        "the roll estimate wanders inside its initial uncertainty (P0 0.02 rad: the wheels spin up within the 25 "
+        "levelling samples, so the start is not levelled), "
         "the v_z row's roll column -v_By (25), taken at the drifted v_By, moves it further than the gyro does, and "
         "gravity g droll integrates twice into a lateral error.")
     if k == "straight":
@@ -235,6 +236,11 @@ def _order_note(ctx: Any, ev: Evaluation, k: str, out: Mapping[str, float]) -> N
                  + " / ".join(f"{fine[v]:.3g}" for v in VARIANTS) + " m for schemes 1/2/3, ordering "
                  + ("holds." if fine_holds else "fails" + (" too: encoder resolution is not what decides it here."
                                                            if not holds else ".")))
+    lev = {v: pr.mean(f"levelled_v{v}", "rms")[0] for v in VARIANTS}
+    parts.append(f"Sensitivity (P0 roll/pitch {SETTINGS.levelled_p0_rollpitch:g} rad, a levelled start, instead of "
+                 "0.02; no verdict): " + " / ".join(f"{lev[v]:.3g}" for v in VARIANTS) + " m for schemes 1/2/3, "
+                 "ordering " + ("holds" if lev[3] < lev[2] < lev[1] else "fails") + ", scheme 3 "
+                 + ("below" if lev[3] < lev[1] else "not below") + " scheme 1 (means).")
     txt = " ".join(parts)
     for cid in (f"order_{k}", f"superior_{k}", f"v3_rms_{k}"):
         ctx.note(cid, txt)
@@ -390,7 +396,10 @@ def diagnosis(ctx: Any) -> dict[str, float]:
             out[f"{k}.v{v}.roll_err"] = pr.mean(f"v{v}", "roll_err")[0]
             out[f"{k}.fine.v{v}"] = pr.mean(f"fine_v{v}", "rms")[0]
             out[f"{k}.fine.v{v}.slip_rms"] = pr.mean(f"fine_v{v}", "slip_rms")[0]
+            out[f"{k}.levelled.v{v}"] = pr.mean(f"levelled_v{v}", "rms")[0]
         out[f"{k}.fine.order_holds"] = float(out[f"{k}.fine.v3"] < out[f"{k}.fine.v2"] < out[f"{k}.fine.v1"])
+        out[f"{k}.levelled.order_holds"] = float(out[f"{k}.levelled.v3"] < out[f"{k}.levelled.v2"]
+                                                 < out[f"{k}.levelled.v1"])
     for (wl, wr), (g, s) in ev.speed.items():
         out[f"speed_{wl:g}_{wr:g}.s_cm"] = 100.0 * s
         out[f"speed_{wl:g}_{wr:g}.abs_gamma"] = g
