@@ -66,6 +66,11 @@ class CalibrationLeak(RuntimeError):
     """Raised when a method would be scored on a run it was calibrated on."""
 
 
+class CalibrationDataError(ValueError):
+    """The calibration runs given cannot calibrate this method (they lack the experiment its identification needs):
+    bad input, reported in one line.  A method's own calibration-data errors derive from it."""
+
+
 def calibrated_on(method: Any) -> frozenset[str]:
     """Content hashes of the runs a method was calibrated on (set by :func:`calibrate`)."""
     return frozenset(getattr(method, "_calibration_hashes", frozenset()))

@@ -17,8 +17,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -141,23 +139,17 @@ class Run:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        from bench.report.io import atomic_path
+
         table = pa.Table.from_pandas(self.data.astype(np.float64), preserve_index=False)
         meta = {k: v for k, v in self.meta.items() if k != "source_file"}
         schema_meta = dict(table.schema.metadata or {})
         schema_meta.pop(b"pandas", None)  # pandas metadata carries versions: keep files byte-stable
         schema_meta[META_KEY] = json.dumps(meta, sort_keys=True, default=str).encode()
         table = table.replace_schema_metadata(schema_meta)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-        os.close(fd)
-        try:
+        with atomic_path(path) as tmp:
             pq.write_table(table, tmp, compression="zstd", write_statistics=False)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+        return Path(path)
 
     @classmethod
     def from_parquet(cls, path: str | Path) -> "Run":
@@ -172,7 +164,12 @@ class Run:
         except (pa.ArrowInvalid, OSError) as exc:
             raise RunError(str(path), "<file>", str(path), f"not a readable Parquet file ({exc})") from None
         raw = (table.schema.metadata or {}).get(META_KEY)
-        meta = json.loads(raw) if raw else {}
+        try:
+            meta = json.loads(raw) if raw else {}
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise RunError(str(path), "<metadata>", raw[:40], f"run metadata is not JSON ({exc})") from None
+        if not isinstance(meta, dict):
+            raise RunError(str(path), "<metadata>", type(meta).__name__, "run metadata must be a JSON object")
         meta["source_file"] = str(path)
         data = table.to_pandas()
         for c in data.columns:  # pandas' test: numpy's issubdtype raises on pandas' string / nullable dtypes

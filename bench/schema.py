@@ -114,6 +114,7 @@ def build(cls: type, data: Mapping[str, Any], file: Path | str = "<dict>", prefi
     hints = typing.get_type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if not f.name.startswith("_")}
     kwargs: dict[str, Any] = {}
+    given: dict[str, tuple[str, Any]] = {}  # dataclass field -> (the file's key, its value): errors name what was written
     for key, value in data.items():
         name = f"{prefix}.{key}" if prefix else key
         if key in _UNIT_FIELDS and _UNIT_FIELDS[key][0] in fields:
@@ -121,6 +122,7 @@ def build(cls: type, data: Mapping[str, Any], file: Path | str = "<dict>", prefi
             if not _type_ok(value, float):
                 raise SpecError(file, name, value, "expected a number")
             kwargs[target] = conv(float(value))
+            given[target] = (key, value)
             continue
         if key not in fields:
             raise SpecError(file, name, value, f"unknown key; allowed: {sorted(fields)}")
@@ -134,9 +136,22 @@ def build(cls: type, data: Mapping[str, Any], file: Path | str = "<dict>", prefi
         raise SpecError(file, name, None, "required field is missing")
     checks = getattr(cls, "_checks", {})
     for key, value in kwargs.items():
+        file_key, file_value = given.get(key, (key, value))
+        name = f"{prefix}.{file_key}" if prefix else file_key
         if key in checks:
             ok, expected = checks[key]
             if not ok(value):
-                name = f"{prefix}.{key}" if prefix else key
-                raise SpecError(file, name, value, f"expected {expected}")
-    return cls(**kwargs)
+                raise SpecError(file, name, file_value, f"expected {expected}"
+                                + (f" (in SI: {key} = {value:.6g})" if file_key != key else ""))
+        elif hints[key] is float and not math.isfinite(value) and not _inf_default(fields[key]):
+            raise SpecError(file, name, file_value, "expected a finite number")
+    obj = cls(**kwargs)
+    whole = getattr(obj, "_check_whole", None)
+    if whole is not None and (bad := whole()) is not None:
+        raise SpecError(file, f"{prefix}.{bad[0]}" if prefix else bad[0], bad[1], f"expected {bad[2]}")
+    return obj
+
+
+def _inf_default(f: dataclasses.Field) -> bool:
+    """A float field whose default is infinite (a limit: inf = none) may be set to infinity; any other may not."""
+    return isinstance(f.default, float) and math.isinf(f.default)

@@ -11,6 +11,14 @@ from bench.schema import nonneg, positive
 
 __all__ = ["EncoderSpec", "ImuSpec", "GnssSpec", "ReferenceSpec", "SensorSpec"]
 
+MAX_RATE_HZ = 10_000.0  # the testbed's fastest physics step is 1e-4 s (Scenario.dt): no sensor samples faster
+SENSOR_RATE_RANGE = f"in (0, {MAX_RATE_HZ:g}] Hz"
+
+
+def sensor_rate(x: float) -> bool:
+    """A sampling rate [Hz]: > 0 and at most MAX_RATE_HZ (1e9 Hz would ask for gigabytes of samples)."""
+    return 0 < x <= MAX_RATE_HZ
+
 
 @dataclass(frozen=True)
 class EncoderSpec:
@@ -23,7 +31,7 @@ class EncoderSpec:
     latency: float = 0.0
     _checks = {
         "counts_per_rev": (lambda x: x > 0, "> 0"),
-        "rate_hz": (positive, "> 0"),
+        "rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
         "scale_error_l": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
         "scale_error_r": (lambda x: abs(x) < 0.5, "|x| < 0.5"),
         "latency": (lambda x: 0 <= x <= 2 and math.isfinite(x), "in [0, 2] s"),
@@ -47,7 +55,7 @@ class ImuSpec:
     lever_x: float = 0.0
     lever_y: float = 0.0
     _checks = {k: (nonneg, ">= 0") for k in ("accel_noise", "gyro_noise", "accel_bias_walk", "gyro_bias_walk")} | {
-        "rate_hz": (positive, "> 0"),
+        "rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
         "saturation_accel": (positive, "> 0"),
         "saturation_gyro": (positive, "> 0"),
         "gyro_bias_z": (lambda x: abs(x) < 1, "|x| < 1 rad/s"),
@@ -70,7 +78,7 @@ class GnssSpec:
     dropout_prob: float = 0.0  # probability a sample is missing
     outages: tuple[tuple[float, float], ...] = ()  # [(t_start, t_end), ...] with no fix
     _checks = {
-        "rate_hz": (positive, "> 0"),
+        "rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
         "pos_noise": (nonneg, ">= 0"),
         "vel_noise": (nonneg, ">= 0"),
         "yaw_noise": (nonneg, ">= 0"),
@@ -91,7 +99,7 @@ class ReferenceSpec:
     yaw_noise: float = 0.002  # [rad]
     _checks = {
         "kind": (lambda x: x in ("vision", "laser", "dgps", "mocap", "icp"), "one of vision, laser, dgps, mocap, icp"),
-        "rate_hz": (positive, "> 0"),
+        "rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
         "pos_noise": (nonneg, ">= 0"),
         "yaw_noise": (nonneg, ">= 0"),
     }

@@ -24,7 +24,7 @@ from typing import Any, Mapping
 
 from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
 from bench.schema import SpecError, build, nonneg, positive
-from bench.sensor_spec import EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec
+from bench.sensor_spec import SENSOR_RATE_RANGE, EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec, sensor_rate
 from bench.sources import Source, Sources, default_sources, file_sources, override_sources, parameters
 
 
@@ -152,11 +152,11 @@ class Platform:
     sources: Sources = field(default_factory=Sources, compare=False, repr=False)
 
     _checks = {
-        "mass": (positive, "> 0 kg"),
+        "mass": (lambda x: 0.1 <= x <= 5e4, "in [0.1, 5e4] kg (a wheeled robot)"),
         "yaw_inertia": (positive, "> 0 kg m^2"),
-        "track": (positive, "> 0 m"),
-        "wheelbase": (positive, "> 0 m"),
-        "wheel_radius": (positive, "> 0 m"),
+        "track": (lambda x: 0.05 <= x <= 10.0, "in [0.05, 10] m"),
+        "wheelbase": (lambda x: 0.0 < x <= 10.0, "in (0, 10] m"),
+        "wheel_radius": (lambda x: 0.01 <= x <= 2.0, "in [0.01, 2] m"),
         "wheel_width": (positive, "> 0 m"),
         "patch_length": (positive, "> 0 m"),
         "patch_gap": (nonneg, ">= 0 m"),
@@ -177,7 +177,7 @@ class Platform:
         "command_accel_mean": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
         "command_accel_diff": (lambda x: x > 0, "> 0 rad/s^2 (inf: no limit)"),
         "wheel_speed_limit": (lambda x: x > 0, "> 0 rad/s (inf: no limit)"),
-        "payload": (nonneg, ">= 0 kg"),
+        "payload": (lambda x: 0 <= x <= 5e4, "in [0, 5e4] kg"),
         "tire_pressure": (lambda x: 0 <= x <= 1e6, "in [0, 1e6] Pa (0: no pneumatic tire; 145 psi)"),
         "tire_modulus": (lambda x: 0 <= x <= 1e9, "in [0, 1e9] Pa (0: no solid tire)"),
         "tire_rolling_resistance": (lambda x: -0.2 < x < 0.2, "in (-0.2, 0.2) (added to the terrain's)"),
@@ -186,6 +186,14 @@ class Platform:
     @property
     def total_mass(self) -> float:
         return self.mass + self.payload
+
+    def _check_whole(self) -> tuple[str, object, str] | None:
+        """The centre of mass inside the wheels' support rectangle (outside it the robot tips over at rest)."""
+        if not abs(self.cg_offset_x) < self.wheelbase / 2:
+            return "cg_offset_x", self.cg_offset_x, f"|cg_offset_x| < wheelbase / 2 = {self.wheelbase / 2:g} m"
+        if not abs(self.cg_offset_y) < self.track / 2:
+            return "cg_offset_y", self.cg_offset_y, f"|cg_offset_y| < track / 2 = {self.track / 2:g} m"
+        return None
 
 
 @dataclass(frozen=True)
@@ -198,6 +206,16 @@ class FrictionPatch:
     y_max: float = 1e3
     mu_scale: float = 1.0
     t_period: float = 0.0  # > 0: friction scale oscillates in time with this period [s]
+
+    _checks = {
+        "mu_scale": (lambda x: 0 <= x <= 10, "in [0, 10]"),
+        "t_period": (nonneg, ">= 0 s"),
+    }
+
+    def _check_whole(self) -> tuple[str, object, str] | None:
+        if not (self.x_min <= self.x_max and self.y_min <= self.y_max):
+            return "x_max", (self.x_min, self.x_max, self.y_min, self.y_max), "x_min <= x_max and y_min <= y_max"
+        return None
 
 
 @dataclass(frozen=True)
@@ -280,6 +298,12 @@ class Segment:
     a: float
     b: float
 
+    _checks = {
+        "t_end": (positive, "> 0 s"),
+        "a": (math.isfinite, "a finite number"),
+        "b": (lambda x: not math.isnan(x), "a number (inf: a straight v_radius segment)"),
+    }
+
 
 @dataclass(frozen=True)
 class CommandSpec:
@@ -311,8 +335,23 @@ class CommandSpec:
         ),
         "units": (lambda x: x in ("rad/s", "rpm", "m/s"), "one of rad/s, rpm, m/s"),
         "accel": (nonneg, ">= 0"),
-        "step": (positive, "> 0"),
+        "step": (lambda x: 1e-3 <= x <= 3600.0, "in [1e-3, 3600] s"),
+        "v_max": (lambda x: 0 < x <= 20.0, "in (0, 20] m/s"),
+        "w_max": (lambda x: 0 <= x <= 20.0, "in [0, 20] rad/s"),
+        "v": (lambda x: abs(x) <= 20.0, "in [-20, 20] m/s"),
     }
+
+    def _check_whole(self) -> tuple[str, object, str] | None:
+        """What the fields' own ranges cannot see: a segment value the command's kind cannot turn into wheel speeds
+        (a wheel speed that is infinite, a radius of 0, a curvature ratio below 0); (field, value, expected)."""
+        for i, s in enumerate(self.segments):
+            if self.kind == "wheel_speeds" and not math.isfinite(s.b):
+                return f"segments[{i}].b", s.b, "a finite wheel speed"
+            if self.kind == "v_radius" and s.b == 0.0:
+                return f"segments[{i}].b", s.b, "a radius != 0 m (inf: straight)"
+            if self.kind == "v_curvature_ratio" and not s.b >= 0.0:
+                return f"segments[{i}].b", s.b, "a curvature ratio >= 0 (the right tread the faster; inf: straight)"
+        return None
 
 
 @dataclass(frozen=True)
@@ -335,7 +374,8 @@ class Scenario:
     _checks = {
         "duration": (lambda x: 0 < x <= 4 * 3600, "in (0, 14400] s"),
         "dt": (lambda x: 1e-4 <= x <= 0.02, "in [1e-4, 0.02] s"),
-        "log_rate_hz": (positive, "> 0"),
+        "log_rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
+        "initial_speed": (lambda x: abs(x) <= 20.0, "in [-20, 20] m/s"),
         "initial_yaw_rate": (lambda x: math.isfinite(x) and abs(x) <= 10.0, "in [-10, 10] rad/s"),
         "initial_skid_ratio": (lambda x: 0.0 <= x <= 20.0, "in [0, 20]"),
     }
@@ -352,6 +392,8 @@ def _read_toml(path: Path) -> dict[str, Any]:
             return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(path, "<file>", str(path), f"not UTF-8 text (TOML is UTF-8): byte {exc.start}") from None
 
 
 def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:

@@ -370,13 +370,13 @@ def _finite_real(v: Any) -> bool:
 
 
 FIELDS: dict[str, Callable[[Any], bool]] = {  # dotted field -> independent validity oracle
-    "mass": lambda v: _finite_real(v) and v > 0,
-    "track": lambda v: _finite_real(v) and v > 0,
+    "mass": lambda v: _finite_real(v) and 0.1 <= v <= 5e4,  # a wheeled robot's mass [kg]
+    "track": lambda v: _finite_real(v) and 0.05 <= v <= 10,  # [m]
     "wheel_radius_scale_l": lambda v: _finite_real(v) and 0.5 < v < 1.5,
     "actuator_delay": lambda v: _finite_real(v) and 0 <= v < 2,
     "motor.pwm": lambda v: _finite_real(v) and 0 < v <= 1,
     "motor.motors_per_side": lambda v: isinstance(v, int) and not isinstance(v, bool) and v in (1, 2),
-    "sensors.imu.rate_hz": lambda v: _finite_real(v) and v > 0,
+    "sensors.imu.rate_hz": lambda v: _finite_real(v) and 0 < v <= 1e4,  # no faster than the finest physics step
 }
 
 values = st.one_of(

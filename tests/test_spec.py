@@ -40,7 +40,14 @@ def test_vinyl_friction_is_yu_table_ii():
     "override, field, fragment",
     [
         ({"terrain.mu_sa": -1.0}, "terrain.mu_sa", "expected in (0, 3)"),
-        ({"platform.mass": -3.0}, "platform.mass", "> 0 kg"),
+        ({"platform.mass": -3.0}, "platform.mass", "in [0.1, 5e4] kg"),
+        ({"platform.wheel_radius": 1e-6}, "platform.wheel_radius", "in [0.01, 2] m"),
+        ({"platform.cg_offset_x": float("inf")}, "platform.cg_offset_x", "finite"),
+        ({"platform.cg_offset_y": 0.3}, "platform.cg_offset_y", "< track / 2"),
+        ({"platform.sensors.imu.rate_hz": 1e9}, "platform.sensors.imu.rate_hz", "in (0, 10000] Hz"),
+        ({"terrain.slope_deg": 90}, "terrain.slope_deg", "in SI: slope = 1.5708"),
+        ({"initial_speed": float("inf")}, "initial_speed", "[-20, 20] m/s"),
+        ({"platform.cg_offset_x": 1e300}, "platform.cg_offset_x", "< wheelbase / 2"),
         ({"platform.mass": "heavy"}, "platform.mass", "expected float"),
         ({"platform.wheels": 6}, "platform.wheels", "unknown key"),
         ({"command.kind": "teleport"}, "command.kind", "one of"),
@@ -58,6 +65,35 @@ def test_bad_values_name_file_field_value(override, field, fragment):
     assert e.field == field and fragment in str(e)
     assert "circle_vinyl.toml" in e.file
     assert repr(list(override.values())[0]) in str(e) or str(list(override.values())[0]) in str(e)
+
+
+@pytest.mark.parametrize(
+    "segments, field, value, fragment",
+    [
+        ([[-1.0, 0.2, 4.0]], "command.segments[0].t_end", -1.0, "> 0 s"),
+        ([[20.0, 0.2, 0.0]], "command.segments[0].b", 0.0, "radius != 0"),
+        ([[20.0, float("inf"), 4.0]], "command.segments[0].a", float("inf"), "finite"),
+        ([[20.0, 0.2, float("nan")]], "command.segments[0].b", None, "NaN"),
+    ],
+)
+def test_a_segment_the_command_cannot_follow_names_its_value(segments, field, value, fragment):
+    """A command segment with a negative end, an infinite speed, a radius of 0 or NaN is refused at load time (the
+    testbed would turn it into infinite wheel speeds or never move), naming the segment's field."""
+    with pytest.raises(SpecError) as ei:
+        load_scenario("circle_vinyl", {"command.segments": segments})
+    e = ei.value
+    assert e.field == field and fragment in str(e)
+    if value is not None:
+        assert e.value == value
+
+
+def test_a_curvature_ratio_below_zero_and_an_infinite_wheel_speed_are_refused():
+    with pytest.raises(SpecError, match=r"segments\[0\]\.b.*curvature ratio >= 0"):
+        load_scenario("wang_circle_grid", {"command.segments": [[8.0, 0.3, -1.0]]})
+    with pytest.raises(SpecError, match=r"segments\[0\]\.b.*finite wheel speed"):
+        load_scenario("yi_straight", {"command.segments": [[20.0, 30.0, float("inf")]]})
+    straight = load_scenario("circle_vinyl", {"command.segments": [[20.0, 0.2, float("inf")]]})  # v_radius: inf ok
+    assert straight.command.segments[0].b == float("inf")
 
 
 def test_missing_file_and_unknown_platform(tmp_path):

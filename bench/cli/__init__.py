@@ -103,8 +103,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         if not _input_error(exc):
             raise
-        print(f"error: {exc.args[0] if isinstance(exc, KeyError) and exc.args else exc}", file=sys.stderr)
+        print(f"error: {_one_line(exc)}", file=sys.stderr)
         return 2
+
+
+def _one_line(exc: Exception) -> str:
+    """The message of an input error on one line: an OSError names its path, a KeyError the missing key."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        return f"{exc.filename}: {exc.strerror or exc}"
+    if isinstance(exc, KeyError) and exc.args:
+        key = exc.args[0]
+        return key if isinstance(key, str) and " " in key else f"missing key or column {key!r}"
+    return " ".join(str(exc).split())
 
 
 def _input_error(exc: Exception) -> bool:
@@ -113,10 +123,13 @@ def _input_error(exc: Exception) -> bool:
     command has failed, not at every start-up (bench.metrics pulls in scipy: 0.2 s)."""
     if isinstance(exc, (SpecError, RunError, KeyError)):
         return True
+    if isinstance(exc, OSError) and exc.filename is not None:  # an output path that is a folder, a missing file ...
+        return True
     from bench.metrics.trajectory import MetricError
-    from bench.registry import CalibrationLeak
+    from bench.real.benchmark import NoWindowModels
+    from bench.registry import CalibrationDataError, CalibrationLeak
 
-    return isinstance(exc, (CalibrationLeak, MetricError))
+    return isinstance(exc, (CalibrationLeak, CalibrationDataError, MetricError, NoWindowModels))
 
 
 if __name__ == "__main__":

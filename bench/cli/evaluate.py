@@ -24,11 +24,37 @@ RELATIONS = {"trans": "translation", "angle_deg": "rotation_angle_deg", "angle_r
              "full": "full"}
 
 
+def read_estimate_csv(path: Path):  # noqa: ANN201 - a pandas DataFrame
+    """An estimate CSV (``skidbench estimate``'s output): numeric columns t, x, y, yaw at least, t strictly
+    increasing; anything else is a :class:`RunError` naming the file, the column and the value."""
+    import numpy as np
+    import pandas as pd
+
+    from bench.run import RunError
+
+    if not path.is_file():
+        raise RunError(str(path), "<file>", str(path), "file not found")
+    try:
+        frame = pd.read_csv(path)
+    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:  # EmptyDataError is a ValueError
+        raise RunError(str(path), "<file>", str(exc).splitlines()[0], "an estimate CSV (t, x, y, yaw)") from None
+    missing = [c for c in ("t", "x", "y", "yaw") if c not in frame.columns]
+    if missing:
+        raise RunError(str(path), ", ".join(missing), "missing", "an estimate CSV has columns t, x, y, yaw")
+    for c in ("t", "x", "y", "yaw"):
+        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+            raise RunError(str(path), c, str(frame[c].dtype), "expected numbers")
+    t = frame["t"].to_numpy(float)
+    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        bad = "fewer than 2 rows" if t.size < 2 else "not finite and strictly increasing"
+        raise RunError(str(path), "t", bad, "time stamps: at least 2, finite, strictly increasing")
+    return frame
+
+
 def load_trajectory(path: Path, source: str = "truth"):  # noqa: ANN201 - bench.metrics.Trajectory
     """A trajectory from a TUM file, a run (its ``source`` pose channels) or an estimate CSV; runs and estimates in
     the frame of ``export-tum`` (:func:`bench.formats.tum.pose_rows`: z as the height change since the first pose,
     the full attitude where logged), so a run's truth and an estimate of it compare as their TUM exports do."""
-    import pandas as pd
     from scipy.spatial.transform import Rotation
 
     from bench.formats import read_tum
@@ -39,17 +65,11 @@ def load_trajectory(path: Path, source: str = "truth"):  # noqa: ANN201 - bench.
     if not path.is_file():
         raise RunError(str(path), "<file>", str(path), "file not found")
     if path.suffix == ".parquet":
-        run = Run.from_parquet(path)
+        run = Run.from_parquet(path).validate()
         t, xyz, quat = pose_rows(run.data, f"{source}_", run.where)
         name = f"{run.id}:{source}"
     elif path.suffix == ".csv":
-        try:
-            frame = pd.read_csv(path)
-        except (ValueError, pd.errors.ParserError) as exc:
-            raise RunError(str(path), "<file>", str(exc).splitlines()[0], "an estimate CSV (t, x, y, yaw)") from None
-        missing = [c for c in ("t", "x", "y", "yaw") if c not in frame.columns]
-        if missing:
-            raise RunError(str(path), ", ".join(missing), "missing", "an estimate CSV has columns t, x, y, yaw")
+        frame = read_estimate_csv(path)
         t, xyz, quat = pose_rows(frame, "", str(path))
         name = path.stem
     else:
@@ -109,6 +129,14 @@ def _evaluate(a: argparse.Namespace) -> int:
         v = getattr(a, name)
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SpecError("<command line>", f"--{name.replace('_', '-')}", v, "a finite number > 0")
+    if a.plot is not None:  # checked before anything is computed or written: a bad --plot leaves no --json behind
+        import matplotlib.pyplot as plt
+
+        fmt = a.plot.suffix.lstrip(".").lower()
+        if fmt not in plt.gcf().canvas.get_supported_filetypes():
+            raise SpecError("<command line>", "--plot", str(a.plot),
+                            "a file name ending in a figure format (.png, .pdf, .svg ...)")
+        plt.close("all")
     ref, est = load_trajectory(a.gt, a.gt_source), load_trajectory(a.est)
     kw = dict(relation=RELATIONS[a.relation], align_mode=ALIGN[a.align], max_diff=a.max_diff,
               project_to_plane=a.project_to_plane)
@@ -124,10 +152,10 @@ def _evaluate(a: argparse.Namespace) -> int:
           f"{', projected to xy' if a.project_to_plane else ''}; {res.errors.size} values)")
     for k in ("rmse", "mean", "median", "std", "min", "max", "sse"):
         print(f"  {k:>6} {out[k]:.9g}")
-    if a.json:
-        atomic_write_text(a.json, json.dumps(out, indent=1, default=float) + "\n")
     if a.plot:
         _plot(a.plot, ref, est, res)
+    if a.json:
+        atomic_write_text(a.json, json.dumps(out, indent=1, default=float) + "\n")
     return 0
 
 

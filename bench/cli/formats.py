@@ -60,17 +60,16 @@ def _tum_args(p: argparse.ArgumentParser) -> None:
 
 
 def _export_tum(a: argparse.Namespace) -> int:
-    import pandas as pd
-
+    from bench.cli.evaluate import read_estimate_csv
     from bench.formats import run_to_tum
     from bench.registry import Estimate
     from bench.run import Run
 
     if a.input.suffix == ".csv":
-        src = Estimate(pd.read_csv(a.input), method=a.input.stem)
+        src = Estimate(read_estimate_csv(a.input), method=a.input.stem)
         run_to_tum(None, src, a.output)
     else:
-        run_to_tum(Run.from_parquet(a.input), a.source, a.output)
+        run_to_tum(Run.from_parquet(a.input).validate(), a.source, a.output)
     print(f"wrote {a.output}")
     return 0
 

@@ -8,10 +8,16 @@ Registered as an extra by :mod:`bench.cli.reproduce` (first of the extras, as be
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
+import os
+import shutil
+import tempfile
 from pathlib import Path
+from typing import Iterator
 
 from bench.cli import command, count
+from bench.schema import SpecError
 
 
 def data_root() -> Path:
@@ -54,7 +60,7 @@ def _real_args(p: argparse.ArgumentParser) -> None:
                    help="a platform name (skidbench list) or a TOML file with wheel_radius and track [m]")
     p.add_argument("--out", type=Path, required=True, help="output folder (nothing is written anywhere else)")
     p.add_argument("--json", type=Path, default=None, help="also write every data set's numbers to this JSON file")
-    p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
+    p.add_argument("--seed", type=count(0), default=0, help="seed of the calibration / held-out split by command step")
     p.add_argument("--methods", default=None,
                    help="comma-separated plugin names (default: every registered plugin with window models)")
     p.add_argument("--fix", action="append", default=[], metavar="NAME",
@@ -63,16 +69,31 @@ def _real_args(p: argparse.ArgumentParser) -> None:
 
 
 def _real(a: argparse.Namespace) -> int:
-    from bench.real.benchmark import every_window_plugin, run_real_benchmark
+    from bench.real.benchmark import every_window_plugin
     from bench.real.platform import kinematic_platform
     from bench.report.io import atomic_write_text, dumps_json
 
     plat = kinematic_platform(a.platform)
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else every_window_plugin()
+    if not methods:
+        raise SpecError("<command line>", "--methods", a.methods, "at least one plugin name")
+    if a.json is not None and a.json.is_dir():
+        raise SpecError("<command line>", "--json", str(a.json), "a file name, not a folder")
+    with staged_folder(a.out) as stage:  # every table's files appear in --out together, or none of them
+        docs = _score_tables(a, plat, methods, stage)
+    if a.json:
+        atomic_write_text(a.json, dumps_json({"platform": plat, "methods": methods, "data": docs}, indent=1,
+                                             sort_keys=True) + "\n")
+    return 0
+
+
+def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: Path) -> dict[str, dict]:
+    from bench.real.benchmark import run_real_benchmark
+
     docs = {}
     for data in a.data:
         label = f"{data.stem}-{plat['name']}"
-        res = run_real_benchmark(data, a.out, a.seed, platform=plat, models=methods, figures=not a.no_figures,
+        res = run_real_benchmark(data, stage, a.seed, platform=plat, models=methods, figures=not a.no_figures,
                                  label=label, fixes=a.fix)
         for f in res["sanity"]["findings"]:
             if not f["ok"]:
@@ -87,10 +108,24 @@ def _real(a: argparse.Namespace) -> int:
               f"{v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
               f"{v['ideal_dd_median_trans']:.3f} m -> {a.out / (label + '.md')}")
         docs[str(data)] = {k: res[k] for k in res if k not in ("files", "runtime_s") and not k.startswith("_")}
-    if a.json:
-        atomic_write_text(a.json, dumps_json({"platform": plat, "methods": methods, "data": docs}, indent=1,
-                                             sort_keys=True) + "\n")
-    return 0
+    return docs
+
+
+@contextlib.contextmanager
+def staged_folder(out: Path) -> Iterator[Path]:
+    """A fresh folder beside ``out`` to write into; its files are moved into ``out`` (made if needed) when the block
+    ends normally, and it is removed either way: a failure leaves ``out`` as it was."""
+    if out.exists() and not out.is_dir():
+        raise SpecError("<command line>", "--out", str(out), "a folder, not a file")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    try:
+        yield stage
+        out.mkdir(exist_ok=True)
+        for f in sorted(stage.iterdir()):
+            os.replace(f, out / f.name)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 command("real", "score the registered plugins on real DRIVE window tables: skidbench real DATA... --platform P "
@@ -107,7 +142,7 @@ def _gap_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--terrain", default=None, help="nominal terrain (name or TOML; default asphalt)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--json", type=Path, default=None, help="also copy the JSON document here")
-    p.add_argument("--seed", type=int, default=0, help="seed of the calibration / held-out split by command step")
+    p.add_argument("--seed", type=count(0), default=0, help="seed of the calibration / held-out split by command step")
     p.add_argument("--full", action="store_true", help="three consecutive fit steps instead of two")
     p.add_argument("--fit-steps", type=count(1), default=None, metavar="N",
                    help="fit on the first N calibration steps, each replayed on its own from its measured initial "

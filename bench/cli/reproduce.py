@@ -322,6 +322,20 @@ def _read_metrics(path: Path) -> dict[str, Any]:
         raise SpecError(path, "<file>", str(path), f"not JSON ({exc})") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("metrics"), dict):
         raise SpecError(path, "metrics", None, "not a metrics document (a JSON object with 'metrics')")
+    from bench.report.io import json_number
+
+    for mid, m in doc["metrics"].items():
+        if not isinstance(m, dict) or "value" not in m:
+            raise SpecError(path, f"metrics.{mid}", m, "a JSON object with a 'value'")
+        if json_number(m["value"]) is None:
+            raise SpecError(path, f"metrics.{mid}.value", m["value"], "a number, null, \"inf\" or \"-inf\"")
+        tol = m.get("tolerance", {})
+        if not isinstance(tol, dict):
+            raise SpecError(path, f"metrics.{mid}.tolerance", tol, "a JSON object with 'abs' and/or 'rel'")
+        for k in ("abs", "rel"):
+            v = tol.get(k, 0.0)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (v >= 0 and math.isfinite(v)):
+                raise SpecError(path, f"metrics.{mid}.tolerance.{k}", v, "a finite number >= 0")
     return doc
 
 

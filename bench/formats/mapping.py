@@ -178,6 +178,8 @@ def load_mapping(path: str | Path) -> ImportMapping:
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(path, "<file>", str(path), f"not UTF-8 text (TOML is UTF-8): byte {exc.start}") from None
     data = dict(data, source_file=str(path))
     return build(ImportMapping, data, path)
 

@@ -74,6 +74,8 @@ class Effect:
     _apply: Callable[[Scenario, ModelConfig, tuple[float, ...]], ModelConfig] = field(repr=False, compare=False)
     _spec: Callable[[Scenario, tuple[float, ...]], dict[str, Any]] = field(repr=False, compare=False)
     probe_grid: tuple[tuple[float, ...], ...] = ()  # screening points when there is no neutral value
+    # whether the testbed can model this effect on a scenario (the slope: not on rough ground, bench.sim.ground)
+    _modelled_on: Callable[[Scenario], bool] = field(default=lambda s: True, repr=False, compare=False)
 
     @property
     def n_params(self) -> int:
@@ -84,6 +86,10 @@ class Effect:
 
     def neutral(self, scn: Scenario) -> tuple[float, ...] | None:
         return self._neutral(scn)
+
+    def modelled_on(self, scn: Scenario) -> bool:
+        """Whether the testbed can simulate this effect on ``scn``'s ground (otherwise it is not a candidate)."""
+        return self._modelled_on(scn)
 
     def apply(self, scn: Scenario, cfg: ModelConfig, values: tuple[float, ...]) -> ModelConfig:
         """``cfg`` with this effect set to ``values``."""
@@ -313,7 +319,8 @@ CATALOGUE: tuple[Effect, ...] = (
         ("imu_ax", "imu_ay", "tau_l", "tau_r"),
         "gravity in the accelerometer (g sin(slope) along the heading's uphill component), torque "
         "offset that changes sign with heading, drift of the path downhill", "physics",
-        lambda s: (math.degrees(s.terrain.slope),), _phys(_slope_spec), _slope_spec),
+        lambda s: (math.degrees(s.terrain.slope),), _phys(_slope_spec), _slope_spec,
+        _modelled_on=lambda s: s.terrain.roughness_gd0 == 0.0),  # bench.sim.ground has no rough ramp
     Effect(
         "motor_saturation", "motor torque/current saturation",
         "Motor current (hence torque) limit per motor I_max [A] below the nominal one (controller "

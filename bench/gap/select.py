@@ -170,8 +170,10 @@ def score(fit: FitResult, j_noise: float, thr: Thresholds) -> float:
     return fit.cost_cv + thr.kappa * j_noise * total_params(fit)
 
 
-def applicable(effect: Effect, physics_model: bool) -> bool:
-    return physics_model or effect.kind in ("sensor",)
+def applicable(effect: Effect, physics_model: bool, scn=None) -> bool:
+    """An effect the model can take: sensor effects always, the others with a physics model, and only where the
+    testbed can simulate them on ``scn``'s ground."""
+    return (physics_model or effect.kind in ("sensor",)) and (scn is None or effect.modelled_on(scn))
 
 
 def mirror_start(effect: Effect, scn, theta) -> tuple[float, ...] | None:
@@ -207,7 +209,7 @@ def run_selection(ev: Evaluator, catalogue: Sequence[Effect] = CATALOGUE, thr: T
     e0 = nominal.cost - jn
     selected: list[tuple[Effect, tuple[float, ...]]] = []
     rounds: list[Round] = []
-    na = [e.name for e in catalogue if not applicable(e, physics_model)]
+    na = [e.name for e in catalogue if not applicable(e, physics_model, scn)]
     for _ in range(thr.max_effects):
         excess = current.cost_cv - jn
         # a further effect could gain at most the excess: stop when that cannot pass the relative test
@@ -219,7 +221,8 @@ def run_selection(ev: Evaluator, catalogue: Sequence[Effect] = CATALOGUE, thr: T
         cost0 = float(z0 @ z0)
         sig0 = ev.signals(base)
         ceiling = measured_current_ceiling(space, sig0)
-        cands = [e for e in catalogue if applicable(e, physics_model) and e.name not in {s.name for s, _ in selected}]
+        cands = [e for e in catalogue
+                 if applicable(e, physics_model, scn) and e.name not in {s.name for s, _ in selected}]
         ev.prefetch([c for e in cands for c in screen_configs(ev, e, base, ceiling)])
         screens = simulate_estimates(ev, cands, [screen(ev, e, base, cost0, z0, sig0, ceiling) for e in cands], base)
         if progress:
@@ -299,7 +302,7 @@ def run_selection(ev: Evaluator, catalogue: Sequence[Effect] = CATALOGUE, thr: T
         if e0 < thr.significant_excess * jn:
             verdict, named = "no significant missing effect", False
             if rounds:
-                cands = [e for e in catalogue if applicable(e, physics_model)]
+                cands = [e for e in catalogue if applicable(e, physics_model, scn)]
                 detection = detection_limits(space, scn, cands, {s.effect: s.sensitivity for s in rounds[0].screens},
                                              ev.z(current.config), jn, thr.min_gain, thr.significance_p)
         else:

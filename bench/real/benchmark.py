@@ -176,6 +176,9 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     findings = check_windows(w)
     w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(w, seed)
+    if test_steps.size == 0:
+        raise RunError(str(data_path), "calib_step", int(calib_steps.size), "at least 2 command steps with usable "
+                       f"windows are needed (one half calibrates, the other is scored); {allw.n_windows} windows read")
     calib = w.subset(np.isin(w.calib_step, calib_steps))
     test = w.subset(np.isin(w.calib_step, test_steps))
     fitted, skipped = [], {}

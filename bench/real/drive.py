@@ -80,6 +80,7 @@ from bench.run import Run, RunError, from_arrays, wrap_angle
 from bench.spec import Platform, SpecError, load_platform, to_dict
 
 DRIVE_DT = 0.05  # [s] DRIVE resamples every log at 20 Hz (dataset_parser.py: ``self.rate = 0.05``)
+MAX_WHEEL_SPEED = 300.0  # [rad/s] no wheeled robot's wheel turns faster (a 5 cm wheel at 15 m/s): a unit error
 DRIVE_FRAME_SAMPLES = 5  # DRIVE's window frame uses the mean Euler angles of the first 5 samples
 EXTRAPOLATION_SAMPLES = 10  # ICP motion over the last 0.5 s sets the one-sample chaining step
 
@@ -313,6 +314,8 @@ def import_drive_windows(path: str | Path, dt: float = DRIVE_DT, max_overlap: in
     path = Path(path)
     where = str(path)
     df = _read_table(path)
+    if len(df) == 0:
+        raise RunError(where, "<rows>", 0, "the table has no windows (a header only)")
     n = _n_samples(df, where)
     channels: dict[str, np.ndarray] = {}
     for base, name in REQUIRED_SERIES.items():
@@ -321,10 +324,16 @@ def import_drive_windows(path: str | Path, dt: float = DRIVE_DT, max_overlap: in
         arr = _series(df, base, n, where, required=False)
         if arr is not None:
             channels[name] = arr
+    for base in ("left_wheel_vel", "right_wheel_vel", "cmd_left", "cmd_right"):
+        a = np.abs(channels[REQUIRED_SERIES[base]])
+        if np.any(a > MAX_WHEEL_SPEED):  # NaN compares False
+            i, k = (int(v[0]) for v in np.nonzero(a > MAX_WHEEL_SPEED))
+            raise RunError(where, f"{base}_{k}", f"row {i}: {float(a[i, k])}",
+                           f"a wheel speed beyond {MAX_WHEEL_SPEED:g} rad/s (the table's unit is rad/s)")
     label = _scalar(df, "calib_step", where)
-    if np.any(label != np.round(label)):
-        i = int(np.flatnonzero(label != np.round(label))[0])
-        raise RunError(where, "calib_step", f"row {i}: {label[i]}", "a step id must be an integer")
+    if np.any(label != np.round(label)) or np.any(np.abs(label) >= 2**53):
+        i = int(np.flatnonzero((label != np.round(label)) | (np.abs(label) >= 2**53))[0])
+        raise RunError(where, "calib_step", f"row {i}: {label[i]}", "a step id must be an integer below 2^53")
     label = label.astype(np.int64)
     steady = _mask(df, "steady_state_mask", where)
     transitory = _mask(df, "transitory_state_mask", where)
@@ -407,9 +416,9 @@ def resolve_platform(platform: str | Path | Platform | Mapping[str, Any] | None,
     """The platform as a dict for ``run.meta["platform"]``: a name/path (``load_platform``), a
     Platform or a mapping, with ``wheel_radius``/``track`` overriding it; with no platform both
     overrides are required (a minimal dict is returned)."""
-    for name, v in (("wheel_radius", wheel_radius), ("track", track)):
-        if v is not None and not (np.isfinite(v) and v > 0):
-            raise SpecError("<command line>", name, v, "expected a finite length > 0 m")
+    for name, v, lo, hi in (("wheel_radius", wheel_radius, 0.01, 2.0), ("track", track, 0.05, 10.0)):
+        if v is not None and not (np.isfinite(v) and lo <= v <= hi):  # a wheeled robot's, as bench.spec.Platform's
+            raise SpecError("<command line>", name, v, f"expected a length in [{lo:g}, {hi:g}] m")
     if platform is None:
         if wheel_radius is None or track is None:
             raise SpecError("<command line>", "platform", None, "give a platform, or both wheel_radius and track")

@@ -194,7 +194,7 @@ from bench.real.stall import STALL_RATIO, motion_ratio, run_series, stall_summar
 from bench.real.io import _atomic_write_text
 from bench.real.windows import valid_windows
 from bench.report.io import dumps_json
-from bench.run import Run
+from bench.run import Run, RunError
 from bench.spec import load_scenario, replace, to_dict
 
 SCENARIO = "real_husky_asphalt"
@@ -284,9 +284,9 @@ def command_tracking(w: DriveWindows, wheel_radius: float, track: float) -> dict
     cl, cr, el, er = (np.nanmean(w[c][s], axis=1) for c in ("cmd_wl", "cmd_wr", "enc_wl", "enc_wr"))
     ok = np.isfinite(cl) & np.isfinite(cr) & np.isfinite(el) & np.isfinite(er)
     out = {"n_steady_windows": int(ok.sum())}
-    if ok.sum() >= 2:
-        out["slope_sum"] = float(np.polyfit((cl + cr)[ok] / 2, (el + er)[ok] / 2, 1)[0])
-        out["slope_difference"] = float(np.polyfit((cr - cl)[ok], (er - el)[ok], 1)[0])
+    for key, x, y in (("slope_sum", (cl + cr) / 2, (el + er) / 2), ("slope_difference", cr - cl, er - el)):
+        if ok.sum() >= 2 and np.ptp(x[ok]) > 0:  # commands that all agree (a straight run's difference) give no slope
+            out[key] = float(np.polyfit(x[ok], y[ok], 1)[0])
     out["max_abs_cmd_yaw_rate_ideal"] = float(np.nanmax(np.abs(wheel_radius * (w["cmd_wr"] - w["cmd_wl"]) / track)))
     if w.has("imu_gz"):
         out["max_abs_gyro_rate"] = float(np.nanmax(np.abs(w["imu_gz"])))
@@ -433,6 +433,9 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         allw = import_drive_windows(data_path)
     w = allw.subset(valid_windows(allw))
     calib_steps, test_steps = split_steps(w, seed)
+    if test_steps.size == 0:
+        raise RunError(str(data_path), "calib_step", int(calib_steps.size), "at least 2 command steps with usable "
+                       f"windows are needed (one half calibrates, the other is held out); {allw.n_windows} windows read")
     order = [int(s) for s in step_order(w)]
     test_set = set(int(s) for s in test_steps)
     held = [s for s in order if s in test_set][: config.n_test]

@@ -287,7 +287,7 @@ def _reading(doc: Mapping[str, Any]) -> list[str]:
     if f["max_abs_cmd_wheel_speed"] > 1.2 * f["max_abs_enc_wheel_speed"]:
         out.append(f"- The measured wheel speeds never exceed {f['max_abs_enc_wheel_speed']:.2f} rad/s while the commands "
                    f"reach {f['max_abs_cmd_wheel_speed']:.2f} rad/s.")
-    if "slope_sum" in f:
+    if "slope_sum" in f and "slope_difference" in f:
         out.append(
             f"- The wheels do not track the logged commands, which is what the replay assumes: on the "
             f"{f['n_steady_windows']} steady windows the measured wheel-speed half-sum is {f['slope_sum']:.2f} x the "

@@ -24,6 +24,7 @@ __all__ = ["kinematic_platform", "REQUIRED"]
 
 REQUIRED = ("wheel_radius", "track")
 _LENGTH_UNITS = {"": 1.0, "_m": 1.0, "_cm": 0.01, "_mm": 0.001}
+_RANGE = {"wheel_radius": (0.01, 2.0), "track": (0.05, 10.0)}  # [m]: a wheeled robot's, as bench.spec.Platform's
 
 
 def _length(doc: dict[str, Any], key: str, path: Path) -> float:
@@ -37,6 +38,9 @@ def _length(doc: dict[str, Any], key: str, path: Path) -> float:
     v = doc[k]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         raise SpecError(path, k, v, "expected a finite length > 0")
+    lo, hi = _RANGE[key]
+    if not lo <= float(v) * factor <= hi:
+        raise SpecError(path, k, v, f"expected a length in [{lo:g}, {hi:g}] m (given in {k[len(key) + 1:] or 'm'})")
     return float(v) * factor
 
 

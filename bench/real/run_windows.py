@@ -35,6 +35,9 @@ _NEEDED = ("enc_wl", "enc_wr", "ref_x", "ref_y", "ref_yaw")
 _CARRIED = ("cmd_wl", "cmd_wr", "imu_ax", "imu_ay", "imu_az", "imu_gx", "imu_gy", "imu_gz")
 
 
+MAX_SPAN = 7 * 86400.0  # [s] the longest run cut into windows (a week: 12 million samples on DRIVE's grid)
+
+
 def is_run_file(path: Path) -> bool:
     """True for a skidbench Run (Parquet with the run metadata), False for any other file (e.g. a DRIVE table)."""
     if Path(path).suffix.lower() != ".parquet":
@@ -86,6 +89,9 @@ def windows_from_run(run: Run, where: str | None = None, dt: float = DRIVE_DT, w
     t = run.t
     if t.size < 2 or not np.all(np.isfinite(t)):
         raise RunError(where, "t", None, "expected at least two finite sample times")
+    if (span := float(t[-1] - t[0])) > MAX_SPAN:
+        raise RunError(where, "t", span, f"a run over {MAX_SPAN / 86400:g} days long: time stamps in another unit "
+                       "than seconds?")
     per = int(round(window / dt)) + 0  # samples per window
     grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
     chans = [c for c in (*_NEEDED, *_CARRIED) if c in run.data.columns]

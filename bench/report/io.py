@@ -7,6 +7,7 @@ null (NaN: "no value", e.g. the ICR of a straight line) or as the string "inf" /
 float field (``command_limit_mean = inf``: no limit)."""
 from __future__ import annotations
 
+import errno
 import json
 import math
 import numbers
@@ -19,8 +20,11 @@ from typing import Any, Iterator
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temp path beside ``path``; on success rename it over ``path``, else delete it."""
+    """Yield a temp path beside ``path``; on success rename it over ``path``, else delete it.  A ``path`` that is a
+    folder is refused first (an OSError naming it: one line at the command line)."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "a folder, not a file to write", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)

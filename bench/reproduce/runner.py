@@ -183,9 +183,9 @@ class Runner:
 
 
 def verify_manifest(manifest: dict, workers: int = 1, limit: int | None = None,
-                    progress: Callable[[int, int], None] | None = None) -> list[dict]:
+                    progress: Callable[[int, int], None] | None = None, source: str = "<manifest>") -> list[dict]:
     """Re-simulate the runs of a manifest (no cache, in worker processes when ``workers`` > 1)
-    and return those whose content hash differs from the recorded one."""
+    and return those whose content hash differs from the recorded one; ``source`` names the manifest in errors."""
     import tempfile
 
     from bench.spec import Scenario, build
@@ -193,7 +193,8 @@ def verify_manifest(manifest: dict, workers: int = 1, limit: int | None = None,
     items = sorted(manifest["runs"].items())[: limit or None]
     with tempfile.TemporaryDirectory() as tmp:
         runner = Runner(cache_dir=Path(tmp), workers=workers, use_cache=False, progress=progress)
-        reqs = [(build(Scenario, manifest["scenarios"][r["scenario_hash"]]), r["seed"]) for _, r in items]
+        reqs = [(build(Scenario, manifest["scenarios"][r["scenario_hash"]], f"{source} (scenarios.{r['scenario_hash']})"),
+                 r["seed"]) for _, r in items]
         runs = runner.simulate_many(reqs)
     return [{"key": k, **r, "got": run.content_hash()} for (k, r), run in zip(items, runs)
             if run.content_hash() != r["content_hash"]]

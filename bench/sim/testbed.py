@@ -37,6 +37,7 @@ from typing import Callable
 
 import numpy as np
 
+from bench.schema import SpecError
 from bench.sim.commands import first_order_lag, rate_limit, wheel_reference, wheel_speed_scale
 from bench.sim.drive import MotorConstants, SidePid, motor_law, motor_line_constants
 from bench.sim.soil import soil_constants
@@ -157,7 +158,9 @@ def _build_world(scn: Scenario, cid: int) -> tuple[int, int, tuple[float, float,
     i_wheel_own = 0.4 * m_wheel * r * r
     izz_base = plat.yaw_inertia - 4 * (m_wheel * (a * a + b * b) + i_wheel_own)
     if izz_base <= 0:
-        raise ValueError(f"platform {plat.name}: yaw_inertia {plat.yaw_inertia} too small for its geometry")
+        raise SpecError(f"platform {plat.name}", "platform.yaw_inertia", plat.yaw_inertia,
+                        f"> {plat.yaw_inertia - izz_base:.4g} kg m^2: its four wheels at this track, wheelbase and "
+                        "mass carry that much")
     ixx = m_base * (plat.body_width**2 + plat.body_height**2) / 12
     iyy = m_base * (plat.body_length**2 + plat.body_height**2) / 12
     p.changeDynamics(

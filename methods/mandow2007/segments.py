@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from bench import registry
 from bench.run import Run, wrap_angle
 from methods.baselines import encoder_speeds, has_reference, platform_geometry, reference_poses
 from methods.mandow2007.kinematics import PARAM_NAMES, IcrParams
@@ -29,7 +30,7 @@ except ImportError:  # pragma: no cover - a source tree without the built extens
     _COST = None
 
 
-class CalibrationDataError(ValueError):
+class CalibrationDataError(registry.CalibrationDataError):
     """The calibration runs do not contain the experiment an identification needs."""
 
 

@@ -23,6 +23,7 @@ from typing import Any, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
+from bench import registry
 from bench.run import Run, RunError
 from methods.baselines import encoder_speeds, held_integral, platform_geometry
 
@@ -34,7 +35,7 @@ TABLE_3 = {  # lambda -> (mean chi, std chi), Table 3
 }
 
 
-class CalibrationDataError(ValueError):
+class CalibrationDataError(registry.CalibrationDataError):
     """The calibration runs do not allow the identification of Section 3."""
 
 

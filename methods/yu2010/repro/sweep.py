@@ -205,8 +205,8 @@ def fig9(ctx: Any) -> dict[str, float]:
         f"scored on the other {len(R) - HELDOUT_FIT_N} radii: shear law (K = {out['heldout_K_shear'] * 1e3:.2f} mm) "
         f"RMS {out['heldout_rms_shear']:.3f} N m, its Coulomb limit (K -> 0, mu_sa {out['heldout_mu_sa_coulomb']:.3f}, "
         f"mu_op {out['heldout_mu_op_coulomb']:.3f} refitted) {out['heldout_rms_coulomb']:.3f} N m. The Coulomb limit of "
-        "Yu's model gives the same torque at every radius (the slip velocity of eq. (1) turns with R, not its "
-        "direction). The claim tests Yu's model against that alternative, not the testbed's friction law: the "
+        "Yu's model gives the same torque at every radius (with eq. (1)'s kinematics the sliding direction at each "
+        "point of a patch does not change with R, only the sliding speed). The claim tests Yu's model against that alternative, not the testbed's friction law: the "
         "testbed's torques vary with R under its own Coulomb terrain model too (its ICRs move with R)."))
     ctx.note("fig9", (
         "Yu's 'magnitudes of both torques reduce as the radius grows' is read per side: the outer (right, CCW) "
