@@ -190,9 +190,11 @@ class Platform:
     def _check_whole(self) -> tuple[str, object, str] | None:
         """The centre of mass inside the wheels' support rectangle (outside it the robot tips over at rest)."""
         if not abs(self.cg_offset_x) < self.wheelbase / 2:
-            return "cg_offset_x", self.cg_offset_x, f"|cg_offset_x| < wheelbase / 2 = {self.wheelbase / 2:g} m"
+            return "cg_offset_x", self.cg_offset_x, (f"|cg_offset_x| < wheelbase / 2 = {self.wheelbase / 2:g} m (the "
+                                                     "centre of mass between the axles)")
         if not abs(self.cg_offset_y) < self.track / 2:
-            return "cg_offset_y", self.cg_offset_y, f"|cg_offset_y| < track / 2 = {self.track / 2:g} m"
+            return "cg_offset_y", self.cg_offset_y, (f"|cg_offset_y| < track / 2 = {self.track / 2:g} m (the centre "
+                                                     "of mass between the wheels)")
         return None
 
 
@@ -210,11 +212,14 @@ class FrictionPatch:
     _checks = {
         "mu_scale": (lambda x: 0 <= x <= 10, "in [0, 10]"),
         "t_period": (nonneg, ">= 0 s"),
+        **{k: (lambda x: not math.isnan(x), "a number (+-inf: unbounded)")
+           for k in ("x_min", "x_max", "y_min", "y_max")},
     }
 
     def _check_whole(self) -> tuple[str, object, str] | None:
-        if not (self.x_min <= self.x_max and self.y_min <= self.y_max):
-            return "x_max", (self.x_min, self.x_max, self.y_min, self.y_max), "x_min <= x_max and y_min <= y_max"
+        for lo, hi in (("x_min", "x_max"), ("y_min", "y_max")):
+            if not getattr(self, lo) <= getattr(self, hi):
+                return hi, getattr(self, hi), f">= {lo} = {getattr(self, lo)}"
         return None
 
 
@@ -290,6 +295,9 @@ class Terrain:
     }
 
 
+MAX_SEGMENT_VALUE = 1e4  # |a|, |b| of a command segment in its units (rad/s, rpm, m/s): beyond, a unit error
+
+
 @dataclass(frozen=True)
 class Segment:
     """One piece of a piecewise-constant command: until ``t_end`` hold (a, b)."""
@@ -300,8 +308,10 @@ class Segment:
 
     _checks = {
         "t_end": (positive, "> 0 s"),
-        "a": (math.isfinite, "a finite number"),
-        "b": (lambda x: not math.isnan(x), "a number (inf: a straight v_radius segment)"),
+        "a": (lambda x: abs(x) <= MAX_SEGMENT_VALUE, f"a finite number, |a| <= {MAX_SEGMENT_VALUE:g}"),
+        # b may be infinite (a straight v_radius or v_curvature_ratio segment): this check stands in for the finite
+        # one of bench.schema.build; CommandSpec._check_whole decides per kind
+        "b": (lambda x: not math.isnan(x), "a number (inf: straight)"),
     }
 
 
@@ -345,10 +355,12 @@ class CommandSpec:
         """What the fields' own ranges cannot see: a segment value the command's kind cannot turn into wheel speeds
         (a wheel speed that is infinite, a radius of 0, a curvature ratio below 0); (field, value, expected)."""
         for i, s in enumerate(self.segments):
-            if self.kind == "wheel_speeds" and not math.isfinite(s.b):
-                return f"segments[{i}].b", s.b, "a finite wheel speed"
-            if self.kind == "v_radius" and s.b == 0.0:
-                return f"segments[{i}].b", s.b, "a radius != 0 m (inf: straight)"
+            if self.kind == "wheel_speeds" and not abs(s.b) <= MAX_SEGMENT_VALUE:
+                return f"segments[{i}].b", s.b, f"a finite wheel speed, |b| <= {MAX_SEGMENT_VALUE:g}"
+            if self.kind in ("v_radius", "v_curvature_ratio") and not abs(s.a) <= 20.0:
+                return f"segments[{i}].a", s.a, "a speed in [-20, 20] m/s"
+            if self.kind == "v_radius" and not abs(s.b) >= 1e-3:
+                return f"segments[{i}].b", s.b, "a radius with |b| >= 1 mm (inf: straight)"
             if self.kind == "v_curvature_ratio" and not s.b >= 0.0:
                 return f"segments[{i}].b", s.b, "a curvature ratio >= 0 (the right tread the faster; inf: straight)"
         return None

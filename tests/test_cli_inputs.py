@@ -133,6 +133,11 @@ def test_real_refuses_a_header_only_table_and_writes_nothing_of_the_others(tmp_p
     err = _one_line(capsys)
     assert str(empty) in err and "no windows" in err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["empty.parquet"]  # no staging left
+    out.mkdir()
+    (out / "kept.txt").write_text("mine")  # an existing --out keeps what it had, and only that
+    assert main(["real", str(drive_table), str(empty), "--platform", "husky", "--out", str(out), "--no-figures"]) == 2
+    assert sorted(p.name for p in out.iterdir()) == ["kept.txt"]
+    capsys.readouterr()
 
 
 def test_real_needs_two_command_steps_and_a_plausible_platform(tmp_path, capsys, drive_table) -> None:
@@ -145,7 +150,8 @@ def test_real_needs_two_command_steps_and_a_plausible_platform(tmp_path, capsys,
     big = tmp_path / "big.toml"
     big.write_text("wheel_radius = 0.3\ntrack = 5e3\n")
     assert main(["real", str(drive_table), "--platform", str(big), "--out", str(tmp_path / "o")]) == 2
-    assert "big.toml" in _one_line(capsys)
+    err = _one_line(capsys)
+    assert "big.toml" in err and "'track' = 5000.0" in err and "[0.05, 10] m" in err
     with pytest.raises(SystemExit) as ei:
         main(["real", str(drive_table), "--platform", "husky", "--out", str(tmp_path / "o"), "--seed", "-1"])
     assert ei.value.code == 2

@@ -71,7 +71,9 @@ def test_bad_values_name_file_field_value(override, field, fragment):
     "segments, field, value, fragment",
     [
         ([[-1.0, 0.2, 4.0]], "command.segments[0].t_end", -1.0, "> 0 s"),
-        ([[20.0, 0.2, 0.0]], "command.segments[0].b", 0.0, "radius != 0"),
+        ([[20.0, 0.2, 0.0]], "command.segments[0].b", 0.0, "|b| >= 1 mm"),
+        ([[0.05, 1e300, 1e-300]], "command.segments[0].a", 1e300, "|a| <= 10000"),  # overflowed the wheel speeds
+        ([[20.0, 1e3, 4.0]], "command.segments[0].a", 1e3, "[-20, 20] m/s"),
         ([[20.0, float("inf"), 4.0]], "command.segments[0].a", float("inf"), "finite"),
         ([[20.0, 0.2, float("nan")]], "command.segments[0].b", None, "NaN"),
     ],
@@ -94,6 +96,17 @@ def test_a_curvature_ratio_below_zero_and_an_infinite_wheel_speed_are_refused():
         load_scenario("yi_straight", {"command.segments": [[20.0, 30.0, float("inf")]]})
     straight = load_scenario("circle_vinyl", {"command.segments": [[20.0, 0.2, float("inf")]]})  # v_radius: inf ok
     assert straight.command.segments[0].b == float("inf")
+
+
+def test_a_friction_patch_may_be_unbounded_but_not_inverted():
+    half = load_scenario("circle_vinyl", {"terrain.friction_patches": [{"x_min": 0.0, "x_max": float("inf"),
+                                                                         "mu_scale": 0.5}]})
+    assert half.terrain.friction_patches[0].x_max == float("inf")
+    with pytest.raises(SpecError) as ei:
+        load_scenario("circle_vinyl", {"terrain.friction_patches": [{"y_min": 2.0, "y_max": 1.0}]})
+    assert ei.value.field == "terrain.friction_patches[0].y_max" and ">= y_min = 2.0" in str(ei.value)
+    with pytest.raises(SpecError, match=r"mu_scale.*in \[0, 10\]"):
+        load_scenario("circle_vinyl", {"terrain.friction_patches": [{"mu_scale": -5.0}]})
 
 
 def test_missing_file_and_unknown_platform(tmp_path):

@@ -30,6 +30,10 @@ def test_a_warm_run_keeps_the_last_cold_table(tmp_path):
     # a run with a filled run cache is not cold, even when nothing came from the result cache
     again = timing.record(tmp_path, False, _stages(5.0), 9.0, 0, 300, workers=2, cache_was_empty=False)
     assert not again["this_run"]["cold"] and again["last_cold"]["wall_seconds"] == 250.0
+    # the header says how many runs it simulated, not "warm", when the cache was only partly valid
+    part = timing.record(tmp_path, False, _stages(5.0), 9.0, 289, 41, workers=2, cache_was_empty=False)
+    assert "(289 runs simulated, 41 from the run cache); last cold run 250.0 s" in timing.summary(part)
+    assert "(cold)" in timing.summary(cold)
 
 
 def test_the_first_table_is_the_headline_claims_and_the_stage_table_follows_it_once(tmp_path):

@@ -129,7 +129,10 @@ def _evaluate(a: argparse.Namespace) -> int:
         v = getattr(a, name)
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SpecError("<command line>", f"--{name.replace('_', '-')}", v, "a finite number > 0")
-    if a.plot is not None:  # checked before anything is computed or written: a bad --plot leaves no --json behind
+    for name in ("plot", "json"):  # checked before anything is computed or written: one bad name leaves no other file
+        if getattr(a, name) is not None and getattr(a, name).is_dir():
+            raise SpecError("<command line>", f"--{name}", str(getattr(a, name)), "a file name, not a folder")
+    if a.plot is not None:
         import matplotlib.pyplot as plt
 
         fmt = a.plot.suffix.lstrip(".").lower()

@@ -113,17 +113,22 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
 
 @contextlib.contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
-    """A fresh folder beside ``out`` to write into; its files are moved into ``out`` (made if needed) when the block
-    ends normally, and it is removed either way: a failure leaves ``out`` as it was."""
+    """A hidden folder inside ``out`` to write into (the same file system: the moves are renames); its files are
+    moved into ``out`` when the block ends normally and it is removed either way.  On a failure ``out`` is as it
+    was: removed again if this call made it."""
     if out.exists() and not out.is_dir():
         raise SpecError("<command line>", "--out", str(out), "a folder, not a file")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
+    made = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=".staging.", suffix=".tmp", dir=out))
     try:
         yield stage
-        out.mkdir(exist_ok=True)
         for f in sorted(stage.iterdir()):
             os.replace(f, out / f.name)
+    except BaseException:
+        if made:
+            shutil.rmtree(out, ignore_errors=True)
+        raise
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 

@@ -111,8 +111,9 @@ def summary(doc: Mapping[str, Any]) -> str:
     """The header's one line: this run's wall time and where the stage table is."""
     run, cold = doc["this_run"], doc.get("last_cold") or {}
     last = f"; last cold run {cold['wall_seconds']:.1f} s" if cold else ""
+    how = "cold" if run["cold"] else f"{run['runs_simulated']} runs simulated, {run['runs_cached']} from the run cache"
     return (f"Where the time goes: {run['wall_seconds']:.1f} s wall on {run['workers']} workers "
-            f"({'cold' if run['cold'] else 'warm'}){last}; per stage: [below](#where-the-time-goes).")
+            f"({how}){last}; per stage: [below](#where-the-time-goes).")
 
 
 def _cut(text: str, begin: str, end: str) -> str:

@@ -41,7 +41,8 @@ Measured behaviour of this design (the testbed paths of the reproduction, tests/
     gravity leaks into the lateral velocity, g droll, which integrates twice into the position, so on
     the 20 s straight line their lateral error dominates (metres; the paper reports only that "the
     first scheme has a large error").  How many metres is set by that P0, which the paper does not give:
-    with 0.002 rad (a levelled start) scheme 1 is 0.2-0.7 m there (the reproduction's levelled.* rows).  The v_z row's
+    with 0.002 rad (a levelled start) scheme 1 is 0.2-0.7 m there over seeds 0-4 (their mean is the
+    reproduction's levelled.* row).  The v_z row's
     roll column -v_By (25), evaluated at the drifted estimate, reports roll information that does not
     exist, and the roll error grows beyond the gyro's own integration error.  With good sensors and
     10 % net slip the ordering of Fig. 5 (3 <= 2 <= 1) is reproduced on turning paths.

@@ -45,8 +45,8 @@ Choices (each one stated where the paper is silent or the testbed differs)
 * ICR smoothness: std over the steady window of the MI-UKF's y_l and y_r (mean of the two stds), mean
   over seeds, at the samples where the ICR exists (truth |yaw rate| >= 1e-3 rad/s, the testbed's own
   definition); n/a when fewer than half of the window has one.  Liu's "more stable in s2 than in s1"
-  compares s2 with the scored straight, whose class C bumps turn it both ways (an ICR at ~96 % of its
-  steady samples); scenario 1 as Liu drove it (``s1_liu``: 4 m/s with the heading change 1.18 -> 0.67 rad
+  compares s2 with the scored straight, whose class C bumps turn it both ways (it has an ICR at most of
+  its steady samples); scenario 1 as Liu drove it (``s1_liu``: 4 m/s with the heading change 1.18 -> 0.67 rad
   of Sec. V-B-1 over the ~8 s of motion of Figs. 8, 10, a 63 m radius) is reported beside it.  The paper
   compares scenarios whose yaw rates differ (s2: 0.5, s3: -1 rad/s measured); but s2 and s3 differ in
   more than the yaw rate (speed, direction), so a yaw-rate sweep of scenario 2 (3 m/s at radii 17, 8, 4,

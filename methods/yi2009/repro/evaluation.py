@@ -210,8 +210,8 @@ def _evaluate(ctx: Any) -> Evaluation:
 
     # ---- scored paths
     v3_pub = Yi2009Ekf(variant=3, s_gamma=PUBLISHED_S_GAMMA)
-    levelled = {v: dataclasses.replace(m, params=dataclasses.replace(m.params, p0_rollpitch=cfg.levelled_p0_rollpitch))
-                for v, m in methods.items()}
+    levelled = {v: registry.calibrate(dataclasses.replace(registry.get(METHOD_NAMES[v]), params=dataclasses.replace(
+        m.params, p0_rollpitch=cfg.levelled_p0_rollpitch)), ident_runs) for v, m in methods.items()}
     results = {}
     for k in PATHS:
         scores: dict[str, list[dict[str, float]]] = {}

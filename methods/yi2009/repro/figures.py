@@ -238,9 +238,10 @@ def _order_note(ctx: Any, ev: Evaluation, k: str, out: Mapping[str, float]) -> N
                                                            if not holds else ".")))
     lev = {v: pr.mean(f"levelled_v{v}", "rms")[0] for v in VARIANTS}
     parts.append(f"Sensitivity (P0 roll/pitch {SETTINGS.levelled_p0_rollpitch:g} rad, a levelled start, instead of "
-                 "0.02; no verdict): " + " / ".join(f"{lev[v]:.3g}" for v in VARIANTS) + " m for schemes 1/2/3, "
-                 "ordering " + ("holds" if lev[3] < lev[2] < lev[1] else "fails") + ", scheme 3 "
-                 + ("below" if lev[3] < lev[1] else "not below") + " scheme 1 (means).")
+                 "0.02; no verdict): " + " / ".join(f"{lev[v]:.3g}" for v in VARIANTS) + " m for schemes 1/2/3 (means "
+                 "over the seeds, without their margin): the means are " + ("" if lev[3] < lev[2] < lev[1] else "not ")
+                 + "in the order 3 < 2 < 1, and scheme 3's is " + ("below" if lev[3] < lev[1] else "not below")
+                 + " scheme 1's.")
     txt = " ".join(parts)
     for cid in (f"order_{k}", f"superior_{k}", f"v3_rms_{k}"):
         ctx.note(cid, txt)

@@ -64,9 +64,10 @@ def fig14_16(ctx: Any) -> dict[str, float]:
         "(2) the logged torque is the motor torque at the start of each physics step, while the semi-implicit wheel "
         "update applies it corrected by (d tau/d w) dw: over the start-up the logged torque above rolling carries "
         f"{out['impulse_logged']:.3f} N m s where the motion needs {out['impulse_from_motion']:.3f} (m r_eff v + "
-        f"wheel spin), worth {out['open_loop_excess_speed']:+.4f} m/s, against the open loop. The open loop's "
-        "error is (1), a model uncertainty of the kind Yu names (Sec. IV: the open loop 'is highly sensitive to these "
-        "uncertainties'), less (2)."
+        f"wheel spin), worth {out['open_loop_excess_speed']:+.4f} m/s, against the open loop. (1) + (2) = "
+        f"{out['open_loop_inertia_speed'] + out['open_loop_excess_speed']:+.4f} m/s of the final error (the rest is "
+        "not attributed here): mostly (1), a model uncertainty of the kind Yu names (Sec. IV: the open loop 'is highly "
+        "sensitive to these uncertainties')."
     ))
     ctx.note("closed_beats_open", (
         f"The open loop's final error {out['v_final_open'] - out['v_final_tb']:+.4f} m/s: the model's missing wheel "

@@ -68,4 +68,15 @@ def test_each_law_predicts_its_own_torques_out_of_sample(law: str, shear_wins: b
     other = out["heldout_rms_coulomb" if law == "shear" else "heldout_rms_shear"]
     assert own < 1e-3 < other  # N m: the own law to rounding, the other misses
     assert (out["heldout_rms_shear"] < out["heldout_rms_coulomb"]) is shear_wins
-    assert HELDOUT_FIT_N == 7  # Yu's Table II row of Table I
+    assert out["heldout_K_coulomb"] == COULOMB_K
+
+
+def test_the_coulomb_fit_reaches_its_minimum_from_a_far_start() -> None:
+    """Coulomb torques with mu_sa 0.07, mu_op 0.34 (the minimum a review found where the fit from the N = 31 values
+    had stopped): the multistart fit recovers them."""
+    truth = P.replace(K=COULOMB_K, mu_sa=0.07, mu_op=0.34)
+    tl, tr = steady_torques(R, 0.2, truth)
+    out = _heldout_prediction(_cal(), tl, tr)
+    assert out["heldout_mu_sa_coulomb"] == pytest.approx(0.07, rel=1e-3)
+    assert out["heldout_mu_op_coulomb"] == pytest.approx(0.34, rel=1e-3)
+    assert HELDOUT_FIT_N < R.size
