@@ -52,14 +52,14 @@ class MotorSpec:
     motors_per_side: int = 2
 
     _checks = {
-        "stall_torque": (positive, "> 0"),
-        "no_load_speed": (positive, "> 0"),
-        "nominal_voltage": (positive, "> 0"),
-        "torque_constant": (positive, "> 0"),
-        "max_current": (positive, "> 0"),
-        "gear_ratio": (positive, "> 0"),
+        "stall_torque": (lambda x: 0 < x <= 1e3, "in (0, 1e3] N m (at the motor shaft)"),
+        "no_load_speed": (lambda x: 0 < x <= 1e4, "in (0, 1e4] rad/s"),
+        "nominal_voltage": (lambda x: 0 < x <= 1e3, "in (0, 1e3] V"),
+        "torque_constant": (lambda x: 0 < x <= 100, "in (0, 100] N m/A"),
+        "max_current": (lambda x: 0 < x <= 1e4, "in (0, 1e4] A"),
+        "gear_ratio": (lambda x: 0.01 <= x <= 1e4, "in [0.01, 1e4]"),
         "pwm": (lambda x: 0 < x <= 1, "in (0, 1]"),
-        "supply_voltage": (positive, "> 0"),
+        "supply_voltage": (lambda x: 0 < x <= 1e3, "in (0, 1e3] V"),
         "controller_loss": (nonneg, ">= 0"),
         "max_power": (nonneg, ">= 0"),
         "gear_efficiency": (lambda x: 0 < x <= 1, "in (0, 1]"),
@@ -81,9 +81,9 @@ class PidSpec:
     gain_scale: float = 1.0  # Yu's gains are on the linear speed [m/s]: scale = wheel radius
 
     _checks = {
-        "kp": (nonneg, ">= 0"),
-        "ki": (nonneg, ">= 0"),
-        "kd": (nonneg, ">= 0"),
+        "kp": (lambda x: 0 <= x <= 1e6, "in [0, 1e6]"),
+        "ki": (lambda x: 0 <= x <= 1e6, "in [0, 1e6]"),
+        "kd": (lambda x: 0 <= x <= 1e6, "in [0, 1e6]"),
         "rate_hz": (positive, "> 0"),
         "gain_scale": (positive, "> 0"),
     }
@@ -279,7 +279,7 @@ class Terrain:
         "mu_sa": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_op": (lambda x: 0 < x < 3, "in (0, 3)"),
         "mu_lat_ratio": (lambda x: 0.1 < x < 5, "in (0.1, 5)"),
-        "shear_modulus": (positive, "> 0 m"),
+        "shear_modulus": (lambda x: 1e-6 <= x <= 1.0, "in [1e-6, 1] m"),
         "shear_modulus_lat_ratio": (lambda x: 0.2 < x < 5, "in (0.2, 5)"),
         "rolling_resistance": (lambda x: 0 <= x < 0.5, "in [0, 0.5)"),
         "slope": (lambda x: abs(x) < math.radians(45), "|slope| < 45 deg"),

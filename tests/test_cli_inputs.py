@@ -230,3 +230,24 @@ def test_real_gap_needs_a_held_out_step(tmp_path, capsys, drive_table) -> None:
     assert main(["real-gap", str(one), "--platform", "husky", "--out", str(tmp_path / "o"), "--no-steady",
                  "--no-transient"]) == 2
     assert "at least 2 command steps" in _one_line(capsys) and not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("over, field", [("platform.motor.stall_torque=1e9", "platform.motor.stall_torque"),
+                                         ("platform.motor.gear_ratio=1e-9", "platform.motor.gear_ratio"),
+                                         ("platform.pid.kp=1e12", "platform.pid.kp"),
+                                         ("terrain.shear_modulus=1e-9", "terrain.shear_modulus")])
+def test_typed_but_absurd_drive_and_tire_values_are_refused(tmp_path, capsys, over, field) -> None:
+    """These simulated before (a stall torque of 1e9 N m, a PID gain of 1e12): now out of the spec's ranges."""
+    assert main(["simulate", "straight_0p2_vinyl", "--set", over, "-o", str(tmp_path / "x.parquet")]) == 2
+    assert f"'{field}'" in _one_line(capsys) and not (tmp_path / "x.parquet").exists()
+
+
+def test_real_gap_refuses_a_folder_for_json_before_running(tmp_path, capsys, drive_table) -> None:
+    """--json naming a folder is refused before the workflow runs (it used to fail after writing the report)."""
+    import pandas as pd
+
+    one = tmp_path / "one.parquet"
+    pd.read_parquet(drive_table).iloc[:1].to_parquet(one)
+    out = tmp_path / "o"
+    assert main(["real-gap", str(one), "--platform", "husky", "--out", str(out), "--json", str(tmp_path)]) == 2
+    assert "--json" in _one_line(capsys) and not out.exists()

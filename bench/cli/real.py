@@ -183,13 +183,17 @@ def _real_gap(a: argparse.Namespace) -> int:
         config = dataclasses.replace(config, transient=False)
     if a.validation_steps is not None:
         config = dataclasses.replace(config, n_validation=a.validation_steps)
-    r = run_real_gap(a.data, a.out, a.seed, platform=a.platform, terrain=a.terrain, config=config,
-                     workers=a.workers, label=label)
+    if a.json is not None and a.json.is_dir():
+        raise SpecError("<command line>", "--json", str(a.json), "a file name, not a folder")
+    with staged_folder(a.out) as stage:  # the report's files appear in --out together, or none of them
+        r = run_real_gap(a.data, stage, a.seed, platform=a.platform, terrain=a.terrain, config=config,
+                         workers=a.workers, label=label)
+        doc_json = Path(r["files"][-2]).read_text()
     ho = r["doc"]["held_out"]["cost"]
     print(f"{r['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> {ho['after_mean']:.4g} "
           f"-> {a.out / (label + '_gap.md')}")
     if a.json:
-        atomic_write_text(a.json, Path(r["files"][-2]).read_text())
+        atomic_write_text(a.json, doc_json)
     return 0
 
 
