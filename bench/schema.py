@@ -14,7 +14,7 @@ from typing import Any, Mapping
 
 from bench.report.io import INF_STRINGS
 
-__all__ = ["SpecError", "build"]
+__all__ = ["SpecError", "build", "read_toml"]
 
 
 class SpecError(ValueError):
@@ -45,6 +45,23 @@ _UNIT_FIELDS = {  # file field -> (dataclass field, converter)
     "soil_friction_angle_deg": ("soil_friction_angle", math.radians),
     "tire_pressure_psi": ("tire_pressure", lambda psi: psi * PA_PER_PSI),
 }
+
+
+def read_toml(path: Path, what: str = "file") -> dict[str, Any]:
+    """A TOML file as a dict, or a one-line :class:`SpecError` naming it: not found (``what`` says which file was
+    expected), malformed, or not UTF-8 (the spec, mapping, paper and kinematic-platform files all read through here)."""
+    import tomllib
+
+    path = Path(path)
+    if not path.is_file():
+        raise SpecError(path, "<file>", str(path), f"{what} not found")
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(path, "<file>", str(path), f"not UTF-8 text (TOML is UTF-8): byte {exc.start}") from None
 
 
 def _json_inf(value: Any, tp: Any) -> Any:

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: the package data
-from bench.schema import SpecError, build, nonneg, positive
+from bench.schema import SpecError, build, nonneg, positive, read_toml
 from bench.sensor_spec import SENSOR_RATE_RANGE, EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec, sensor_rate
 from bench.sources import Source, Sources, default_sources, file_sources, override_sources, parameters
 
@@ -87,6 +87,12 @@ class PidSpec:
         "rate_hz": (positive, "> 0"),
         "gain_scale": (positive, "> 0"),
     }
+
+
+# [m] a wheeled robot's wheel radius and track: Platform's ranges, and those of the kinematic platforms of the real data
+# (bench.real.platform, bench.real.drive.resolve_platform)
+WHEEL_RADIUS_RANGE = (0.01, 2.0)
+TRACK_RANGE = (0.05, 10.0)
 
 
 @dataclass(frozen=True)
@@ -154,9 +160,10 @@ class Platform:
     _checks = {
         "mass": (lambda x: 0.1 <= x <= 5e4, "in [0.1, 5e4] kg (a wheeled robot)"),
         "yaw_inertia": (positive, "> 0 kg m^2"),
-        "track": (lambda x: 0.05 <= x <= 10.0, "in [0.05, 10] m"),
+        "track": (lambda x: TRACK_RANGE[0] <= x <= TRACK_RANGE[1], "in [{:g}, {:g}] m".format(*TRACK_RANGE)),
         "wheelbase": (lambda x: 0.0 < x <= 10.0, "in (0, 10] m"),
-        "wheel_radius": (lambda x: 0.01 <= x <= 2.0, "in [0.01, 2] m"),
+        "wheel_radius": (lambda x: WHEEL_RADIUS_RANGE[0] <= x <= WHEEL_RADIUS_RANGE[1],
+                         "in [{:g}, {:g}] m".format(*WHEEL_RADIUS_RANGE)),
         "wheel_width": (positive, "> 0 m"),
         "patch_length": (positive, "> 0 m"),
         "patch_gap": (nonneg, ">= 0 m"),
@@ -396,18 +403,6 @@ class Scenario:
 # --------------------------------------------------------------------------------------------
 # Loading
 # --------------------------------------------------------------------------------------------
-def _read_toml(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise SpecError(path, "<file>", str(path), "file not found")
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise SpecError(path, "<file>", str(path), f"not UTF-8 text (TOML is UTF-8): byte {exc.start}") from None
-
-
 def _set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
     parts = dotted.split(".")
     node = data
@@ -434,7 +429,7 @@ def parse_override(text: str) -> tuple[str, Any]:
 def _read_part(path: Path, cls: type) -> dict[str, Any]:
     """A platform or terrain file as data, its ``[sources]`` checked (:func:`bench.sources.file_sources`) and
     completed with the sources of the defaults it does not set, as ``data["sources"]`` (field -> Source)."""
-    raw = _read_toml(path)
+    raw = read_toml(path)
     srcs = dict(Sources._from_spec(file_sources(raw, path), path, "sources"))
     data = {k: v for k, v in raw.items() if k != "sources"}
     if "dt_max" in data:  # a terrain's physics-step requirement: applied to the scenario (load_scenario), not kept
@@ -486,7 +481,7 @@ def _resolve(name_or_path: str | Path, folder: Path) -> Path:
 def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[Path, dict[str, Any]]:
     """The raw merged dict of a scenario: its platform and terrain files inlined as tables."""
     path = _resolve(name_or_path, root)
-    raw = _read_toml(path)
+    raw = read_toml(path)
     data = dict(raw)
     for key, folder, cls in (("platform", "platforms", Platform), ("terrain", "terrains", Terrain)):
         ref = data.get(key)

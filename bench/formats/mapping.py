@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from bench.schema import read_toml
 from bench.spec import Platform, SpecError, build, load_platform
 
 __all__ = ["G0", "TimeMap", "WheelMap", "ImuMap", "PoseMap", "DatumMap", "PlatformMap", "ImportMapping", "load_mapping"]
@@ -168,19 +169,8 @@ _WHEEL_PREFIX = {"wheels": "enc", "commands": "cmd"}
 def load_mapping(path: str | Path) -> ImportMapping:
     """Parse and validate a mapping TOML (unknown keys, wrong types and units raise
     :class:`SpecError` naming the file and the dotted field)."""
-    import tomllib
-
     path = Path(path)
-    if not path.is_file():
-        raise SpecError(path, "<file>", str(path), "mapping file not found")
-    try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
-    except UnicodeDecodeError as exc:
-        raise SpecError(path, "<file>", str(path), f"not UTF-8 text (TOML is UTF-8): byte {exc.start}") from None
-    data = dict(data, source_file=str(path))
+    data = dict(read_toml(path, "mapping file"), source_file=str(path))
     return build(ImportMapping, data, path)
 
 

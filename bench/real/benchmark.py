@@ -125,8 +125,12 @@ def resolve_models(models: Sequence[WindowModel | str] | None, wheel_radius: flo
 # split and evaluation
 # ------------------------------------------------------------------------------------------
 def split_steps(w: DriveWindows, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(calibration steps, test steps): a seeded permutation of the step ids, first ceil(n/2) calibrate."""
+    """(calibration steps, test steps): a seeded permutation of the step ids, first ceil(n/2) calibrate; fewer than 2
+    steps leave nothing to hold out (a one-line :class:`RunError` naming the data)."""
     steps = np.unique(w.calib_step)
+    if steps.size < 2:
+        raise RunError(w.source, "calib_step", int(steps.size), "at least 2 command steps with usable windows are "
+                       f"needed (one half calibrates, the other is held out); {w.n_windows} usable windows")
     perm = np.random.default_rng(seed).permutation(steps)
     k = (steps.size + 1) // 2
     return np.sort(perm[:k]), np.sort(perm[k:])
@@ -176,9 +180,6 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     findings = check_windows(w)
     w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(w, seed)
-    if test_steps.size == 0:
-        raise RunError(str(data_path), "calib_step", int(calib_steps.size), "at least 2 command steps with usable "
-                       f"windows are needed (one half calibrates, the other is scored); {allw.n_windows} windows read")
     calib = w.subset(np.isin(w.calib_step, calib_steps))
     test = w.subset(np.isin(w.calib_step, test_steps))
     fitted, skipped = [], {}

@@ -14,17 +14,17 @@ name (``husky``) or the path of a full testbed spec loads through :func:`bench.s
 from __future__ import annotations
 
 import math
-import tomllib
 from pathlib import Path
 from typing import Any
 
-from bench.spec import SpecError, load_platform, to_dict
+from bench.schema import read_toml
+from bench.spec import TRACK_RANGE, WHEEL_RADIUS_RANGE, SpecError, load_platform, to_dict
 
 __all__ = ["kinematic_platform", "REQUIRED"]
 
 REQUIRED = ("wheel_radius", "track")
 _LENGTH_UNITS = {"": 1.0, "_m": 1.0, "_cm": 0.01, "_mm": 0.001}
-_RANGE = {"wheel_radius": (0.01, 2.0), "track": (0.05, 10.0)}  # [m]: a wheeled robot's, as bench.spec.Platform's
+_RANGE = {"wheel_radius": WHEEL_RADIUS_RANGE, "track": TRACK_RANGE}  # [m]: a wheeled robot's, as bench.spec.Platform's
 
 
 def _length(doc: dict[str, Any], key: str, path: Path) -> float:
@@ -49,12 +49,7 @@ def kinematic_platform(spec: str | Path) -> dict[str, Any]:
     path = Path(spec)
     if path.suffix.lower() != ".toml":
         return to_dict(load_platform(str(spec)))  # a registered name (SpecError names the choices)
-    if not path.is_file():
-        raise SpecError(path, "<file>", str(path), "platform file not found")
-    try:
-        doc = tomllib.loads(path.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise SpecError(path, "<file>", str(path), f"not TOML ({exc})") from None
+    doc = read_toml(path, "platform file")
     if isinstance(doc.get("platform"), dict):
         doc = doc["platform"]
     out = {k: v for k, v in doc.items() if not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS)}

@@ -10,7 +10,6 @@ import importlib
 import math
 import pickle
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -23,6 +22,7 @@ from bench.reproduce.report import write_paper
 from bench.reproduce.runner import Runner
 from bench.reproduce.sources import calibration_targets
 from bench.paths import default_results
+from bench.schema import read_toml
 from bench.spec import SCENARIO_DIR, SpecError
 
 __all__ = ["PAPERS_DIR", "RESULTS", "Context", "load_paper", "claim_result", "published_values", "mean_ci",
@@ -70,13 +70,7 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     path = Path(name_or_path)
     if not path.suffix:
         path = PAPERS_DIR / f"{name_or_path}.toml"
-    if not path.is_file():
-        raise SpecError(path, "<file>", str(path), "no such paper declaration")
-    with open(path, "rb") as fh:
-        try:
-            decl = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as exc:
-            raise SpecError(path, "<file>", str(path), f"malformed TOML: {exc}") from None
+    decl = read_toml(path, "paper declaration")
     for key in ("paper", "module", "tables"):
         if key not in decl:
             raise SpecError(path, key, None, "required field is missing")
