@@ -83,8 +83,17 @@ def test_refuted_only_when_the_whole_interval_is_on_the_failing_side():
         r = {"kind": "ratio", "num": "t.n", "den": "t.d", "op": op, "value": 1.0, "margin": "t.m"}
         assert rf(r, n=0.95, d=1.0, m=0.1) is False and rf(r, n=0.8, d=1.0, m=0.1) is True
     assert rf({"kind": "ratio", "num": "t.n", "den": "t.d", "op": "<=", "value": 0.5}, n=0.9, d=1.0) is None
-    assert rf({"kind": "within", "metric": "t.x", "value": 1.0, "tolerance_abs": 0.1, "margin": "t.m"},
-              x=2.0, m=0.1) is None
+    w = {"kind": "within", "metric": "t.x", "value": 1.0, "tolerance_abs": 0.1, "margin": "t.m"}
+    assert rf(w, x=1.0, m=0.05) is None                       # [0.95, 1.05] inside the band [0.9, 1.1]: holds
+    assert rf(w, x=2.0, m=0.1) is True                        # [1.9, 2.1]: wholly outside
+    assert rf(w, x=1.15, m=0.1) is False                      # [1.05, 1.25] reaches into the band
+    assert rf(w, x=1.05, m=0.1) is False                      # the point inside, the interval wider than the band
+    fav = {"kind": "within", "metric": "t.x", "value": 1.0, "tolerance_abs": 0.1, "margin": "t.m"}
+    assert R.favours(fav, {"t.x": 1.05, "t.m": 0.1}) is True and R.favours(fav, {"t.x": 1.15, "t.m": 0.1}) is False
+    # Mandow's y_icr_v_behind as committed before its margin: -2.4 +- 10.3 mm against -12 +- 4 mm: not refuted
+    y = {"kind": "within", "metric": "t.x", "value": -0.012, "tolerance_abs": 0.004, "margin": "t.m"}
+    assert R.evaluate_claim(y, {"t.x": -0.002353, "t.m": 0.0103})[0] is False and rf(y, x=-0.002353, m=0.0103) is False
+    assert rf(y, x=0.01, m=0.0103) is True and R.evaluate_claim(y, {"t.x": -0.012, "t.m": 0.003})[0] is True
 
 
 def test_trend_direction_step_tolerance_and_end_points():
@@ -164,7 +173,7 @@ def violating(c):
     if kind == "within":  # outside the tolerance
         v = float(c["value"])
         tol = float(c["tolerance_abs"]) if "tolerance_abs" in c else float(c.get("tolerance_rel", 0.1)) * abs(v)
-        return {c["metric"]: v + 2.0 * tol + 1.0}
+        return {c["metric"]: v + 2.0 * tol + 1.0, **({c["margin"]: 0.0} if "margin" in c else {})}
     if kind == "flag":  # inverted
         return {c["metric"]: 0.0 if c.get("expect", True) else 1.0}
     raise AssertionError(kind)
@@ -185,7 +194,7 @@ def satisfying(c):
         sign = -1.0 if c.get("direction", "decreasing") == "decreasing" else 1.0
         return {mid: sign * k for k, mid in enumerate(c["series"])}
     if kind == "within":
-        return {c["metric"]: float(c["value"])}
+        return {c["metric"]: float(c["value"]), **({c["margin"]: 0.0} if "margin" in c else {})}
     if kind == "flag":
         return {c["metric"]: 1.0 if c.get("expect", True) else 0.0}
     raise AssertionError(kind)
@@ -392,7 +401,7 @@ def test_calibration_target_and_real_robot_table_in_the_written_report(tmp_path,
     assert claims["order"]["holds"] is True and claims["order"]["verdict"] == "calibration target"
     assert claims["fails"]["verdict"] == "does not hold" and claims["fails"]["refuted"] is None  # no margin
     report = (out / "REPORT.md").read_text()
-    assert "not refuted: inside the seeds' 95 % interval" not in report.split("## Headline claims")[1]
+    assert "not refuted: inside its 95 % interval" not in report.split("## Headline claims")[1]
     assert "vinyl.shear_modulus" in report and "robot.motor.max_power" in report
     assert "testbed: the testbed lacks tire deflection" in report
     assert re.search(r"headline claims \(2\): holding 0; failing 1 \(testbed 1\); calibration targets 1", report)
@@ -508,7 +517,7 @@ def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report
     assert _verdict(beyond) == _verdict(plain) == "**does not hold**"
     assert _verdict({"verdict": "holds", "holds": True, "refuted": False}) == "**holds**"
     assert _counts([inside, beyond, {"verdict": "holds", "holds": True}]) == \
-        "holding 1; failing 2 (protocol 2, 1 of them not refuted (inside the seeds' interval))"
+        "holding 1; failing 2 (protocol 2, 1 of them not refuted (inside the interval))"
     assert _counts([beyond]) == "holding 0; failing 1 (protocol 1)"
     assert _counts([inside, {**inside, "favours": True}]) == \
-        "holding 0; failing 2 (protocol 2, 2 of them not refuted (inside the seeds' interval; the means favour the claim in 1))"
+        "holding 0; failing 2 (protocol 2, 2 of them not refuted (inside the interval; the means favour the claim in 1))"

@@ -251,3 +251,67 @@ def test_real_gap_refuses_a_folder_for_json_before_running(tmp_path, capsys, dri
     out = tmp_path / "o"
     assert main(["real-gap", str(one), "--platform", "husky", "--out", str(out), "--json", str(tmp_path)]) == 2
     assert "--json" in _one_line(capsys) and not out.exists()
+
+
+def test_a_killed_real_leaves_a_stage_that_the_next_run_removes(tmp_path, monkeypatch) -> None:
+    """``real``/``real-gap`` stage their files in ``--out/.staging.<pid>.*.tmp``; a SIGKILL leaves that folder. The
+    next staged write removes the stage of a process that no longer runs and keeps a live one's; ``reproduce``
+    removes such a folder under results/ too (it used to unlink it: IsADirectoryError)."""
+    import subprocess
+    import sys
+
+    import bench.reproduce.runner as runner_mod
+    from bench.cli.real import staged_folder
+    from bench.cli.reproduce import _remove_stale_temp_files
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        out = tmp_path / "out"
+        (out / f".staging.{dead.pid}.abc.tmp").mkdir(parents=True)
+        (out / f".staging.{dead.pid}.abc.tmp" / "half.md").write_text("half")
+        (out / f".staging.{live.pid}.def.tmp").mkdir()
+        with staged_folder(out) as stage:
+            (stage / "table.md").write_text("whole")
+        assert sorted(p.name for p in out.iterdir()) == [f".staging.{live.pid}.def.tmp", "table.md"]
+    finally:
+        live.kill()
+        live.wait()
+    results = tmp_path / "results"
+    (results / "real" / ".staging.1.x.tmp").mkdir(parents=True)
+    (results / "real" / ".staging.1.x.tmp" / "half.md").write_text("half")
+    monkeypatch.setattr(runner_mod, "DEFAULT_CACHE", tmp_path / "cache")
+    _remove_stale_temp_files(results)
+    assert list((results / "real").iterdir()) == []
+
+
+@pytest.mark.parametrize("bad_input", [True, False])
+def test_a_warning_before_an_input_error_does_not_break_its_one_line(monkeypatch, capsys, bad_input) -> None:
+    """numpy's RuntimeWarning on a bad column used to come before the error line; the command line holds warnings
+    until the command ends and drops them when it stops on bad input; a command that succeeds shows them after."""
+    import warnings
+
+    import numpy as np
+
+    from bench import cli
+    from bench.spec import SpecError
+
+    def run(a):
+        with np.errstate(invalid="warn"):
+            np.log(np.array([-1.0]))
+        warnings.warn("a note of the command", UserWarning)
+        if bad_input:
+            raise SpecError("log.csv", "wl", "-1", "a wheel speed")
+        return 0
+
+    monkeypatch.setitem(cli.COMMANDS, "warns", (lambda p: None, run, "test"))
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        code = cli.main(["warns"])
+    err = capsys.readouterr().err.strip().splitlines()
+    if bad_input:
+        assert code == 2 and len(err) == 1 and err[0].startswith("error:") and "log.csv" in err[0]
+        assert seen == []
+    else:
+        assert code == 0 and {type(w.message) for w in seen} == {RuntimeWarning, UserWarning}

@@ -170,3 +170,25 @@ def test_gyro_scale_flips_the_yaw_rate_and_nothing_else(sim):
     np.testing.assert_array_equal(flipped.samples("imu_gz")[1], -plain.samples("imu_gz")[1])
     for c in ("imu_ax", "imu_ay", "enc_wl", "enc_wr", "ref_x"):
         np.testing.assert_array_equal(flipped.samples(c)[1], plain.samples(c)[1])
+
+
+def test_the_centre_of_mass_search_stays_inside_what_the_spec_accepts():
+    """The cg_offset candidate's bounds (+-0.15 m) reach beyond the P3-AT's axles (wheelbase 0.27 m): on it the
+    search is narrowed to 90 % of the half wheelbase and half track, so a fitted value is one `--set` accepts
+    (Platform._check_whole); on the Husky (wheelbase 0.512 m) the catalogue's own bounds stay."""
+    from bench.gap.fit import Layout, _clip
+    from bench.spec import replace
+
+    cg = C.get("cg_offset")
+    p3at = load_scenario("gap_example")
+    wb, tr = p3at.platform.wheelbase, p3at.platform.track
+    assert wb / 2 < 0.15
+    assert cg.bounds(p3at) == ((-0.45 * wb, 0.45 * wb), (max(-0.15, -0.45 * tr), min(0.15, 0.45 * tr)))
+    assert cg.bounds(load_scenario("gap_blind_launch")) == cg.bounds() == ((-0.15, 0.15), (-0.15, 0.15))
+    lay = Layout((cg,), C.ModelConfig())
+    lo, hi = lay.bounds_u(p3at)
+    theta = _clip(np.array([-0.15, 0.15]), lay, p3at)
+    assert lo[0] < theta[0] < 0 and theta[0] > -0.45 * wb
+    x, y = theta
+    assert replace(p3at, **{"platform.cg_offset_x": x, "platform.cg_offset_y": y}).platform._check_whole() is None
+    assert replace(p3at, **{"platform.cg_offset_x": -0.15}).platform._check_whole() is not None

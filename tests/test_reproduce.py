@@ -333,3 +333,30 @@ def test_the_result_key_ignores_where_the_caches_are(monkeypatch):
     assert code_key("yi2009", "True") == base
     monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
     assert code_key("yi2009", "True") != base
+
+
+def test_compiled_extensions_are_found_by_file_and_enter_the_result_key(tmp_path, monkeypatch):
+    """A C source with a module this interpreter loads beside it is "built", one without is "not built", and
+    SKIDBENCH_KERNEL=python turns a built one "off"; a module built for another interpreter does not count.  The
+    result cache's key changes with that state: a result computed with Mandow's numpy cost (a checkout whose build
+    failed) is never served to one with the C cost (the DE polish moves the league's DE row in the 5th digit)."""
+    from importlib.machinery import EXTENSION_SUFFIXES
+
+    from bench.reproduce import provenance as P
+
+    monkeypatch.delenv("SKIDBENCH_KERNEL", raising=False)
+    (tmp_path / "bench" / "sim").mkdir(parents=True)
+    (tmp_path / "methods" / "paper").mkdir(parents=True)
+    (tmp_path / "bench" / "sim" / "_step.c").write_text("")
+    (tmp_path / "bench" / "sim" / f"_step{EXTENSION_SUFFIXES[0]}").write_bytes(b"")
+    (tmp_path / "methods" / "paper" / "_cost.c").write_text("")
+    (tmp_path / "methods" / "paper" / "_cost.cpython-299-x86_64-linux-gnu.so.bak").write_bytes(b"")
+    assert P.compiled_extensions(tmp_path) == {"bench.sim._step": "built", "methods.paper._cost": "not built"}
+    monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
+    assert P.compiled_extensions(tmp_path)["bench.sim._step"] == "off"
+    monkeypatch.delenv("SKIDBENCH_KERNEL")
+
+    base = P.code_key("mandow2007", "False")
+    built = P.compiled_extensions()
+    monkeypatch.setattr(P, "compiled_extensions", lambda: {**built, "methods.mandow2007._cost": "not built"})
+    assert P.code_key("mandow2007", "False") != base

@@ -91,7 +91,8 @@ def test_a_segment_the_command_cannot_follow_names_its_value(segments, field, va
 
 def test_a_curvature_ratio_below_zero_and_an_infinite_wheel_speed_are_refused():
     with pytest.raises(SpecError, match=r"segments\[0\]\.b.*curvature ratio >= 0"):
-        load_scenario("wang_circle_grid", {"command.segments": [[8.0, 0.3, -1.0]]})
+        load_scenario("wang_circle_grid", {"command.kind": "v_curvature_ratio", "command.units": "rad/s",
+                                           "command.segments": [[8.0, 0.3, -1.0]]})
     with pytest.raises(SpecError, match=r"segments\[0\]\.b.*finite wheel speed"):
         load_scenario("yi_straight", {"command.segments": [[20.0, 30.0, float("inf")]]})
     straight = load_scenario("circle_vinyl", {"command.segments": [[20.0, 0.2, float("inf")]]})  # v_radius: inf ok
@@ -282,7 +283,7 @@ def test_overrides_get_an_override_source_and_leave_the_physics_hash_alone():
     base = load_scenario("mandow_straight_asphalt_solid")
     # the scenario's [platform_overrides], with the source its own [sources] gives
     assert base.platform.sources["sensors.reference.kind"].kind == "paper"
-    assert "Mandow 2007 Sec. IV-B" in base.platform.sources["sensors.reference.kind"].ref
+    assert "Mandow 2007 Sec. IV-C" in base.platform.sources["sensors.reference.kind"].ref
     assert base.terrain.sources["mu_sa"].kind == "chosen"
     s = load_scenario("mandow_straight_asphalt_solid", {"terrain.mu_sa": 0.5, "platform.motor.max_power": 3.0})
     assert s.terrain.mu_sa == 0.5 and s.terrain.sources["mu_sa"].kind == "override"

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from bench.run import RunError
@@ -86,6 +88,15 @@ def count(minimum: int) -> Callable[[str], int]:
     return parse
 
 
+def output_files(a: argparse.Namespace, *names: str) -> None:
+    """Each output file ``--NAME`` given on the command line is a file name, not a folder: checked before anything is
+    computed or written, so that one bad name leaves no other file behind."""
+    for name in names:
+        path = getattr(a, name, None)
+        if path is not None and Path(path).is_dir():
+            raise SpecError("<command line>", f"--{name.replace('_', '-')}", str(path), "a file name, not a folder")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``skidbench`` program.  Called as a program (``argv`` None) it first re-executes itself with numpy's
     and OpenBLAS's CPU dispatch pinned (:func:`bench.cpu.reexec_pinned`: the same runs on any x86-64 CPU)."""
@@ -95,16 +106,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         reexec_pinned()
     ap = build_parser()
     a = ap.parse_args(argv)
-    try:
-        return COMMANDS[a.cmd][1](a)
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:
-        if not _input_error(exc):
-            raise
-        print(f"error: {_one_line(exc)}", file=sys.stderr)
+    # warnings are held until the command ends: shown after it when it succeeds (or fails on a defect), dropped when
+    # it stops on bad input, whose report is one line (numpy's "invalid value" on a bad column came before it)
+    with warnings.catch_warnings(record=True) as held:
+        try:
+            code, failure = COMMANDS[a.cmd][1](a), None
+        except KeyboardInterrupt:
+            print("interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:
+            code, failure = 2, exc
+    if failure is not None and _input_error(failure):
+        print(f"error: {_one_line(failure)}", file=sys.stderr)
         return 2
+    for w in held:
+        warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
+    if failure is not None:
+        raise failure
+    return code
 
 
 def _one_line(exc: Exception) -> str:

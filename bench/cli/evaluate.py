@@ -17,38 +17,11 @@ import math
 import sys
 from pathlib import Path
 
-from bench.cli import command
+from bench.cli import command, output_files
 
 ALIGN = {"none": "none", "se2": "se2", "se3": "se3", "sim3": "sim3"}  # CLI name -> bench.metrics.align mode
 RELATIONS = {"trans": "translation", "angle_deg": "rotation_angle_deg", "angle_rad": "rotation_angle_rad",
              "full": "full"}
-
-
-def read_estimate_csv(path: Path):  # noqa: ANN201 - a pandas DataFrame
-    """An estimate CSV (``skidbench estimate``'s output): numeric columns t, x, y, yaw at least, t strictly
-    increasing; anything else is a :class:`RunError` naming the file, the column and the value."""
-    import numpy as np
-    import pandas as pd
-
-    from bench.run import RunError
-
-    if not path.is_file():
-        raise RunError(str(path), "<file>", str(path), "file not found")
-    try:
-        frame = pd.read_csv(path)
-    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:  # EmptyDataError is a ValueError
-        raise RunError(str(path), "<file>", str(exc).splitlines()[0], "an estimate CSV (t, x, y, yaw)") from None
-    missing = [c for c in ("t", "x", "y", "yaw") if c not in frame.columns]
-    if missing:
-        raise RunError(str(path), ", ".join(missing), "missing", "an estimate CSV has columns t, x, y, yaw")
-    for c in ("t", "x", "y", "yaw"):
-        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
-            raise RunError(str(path), c, str(frame[c].dtype), "expected numbers")
-    t = frame["t"].to_numpy(float)
-    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
-        bad = "fewer than 2 rows" if t.size < 2 else "not finite and strictly increasing"
-        raise RunError(str(path), "t", bad, "time stamps: at least 2, finite, strictly increasing")
-    return frame
 
 
 def load_trajectory(path: Path, source: str = "truth"):  # noqa: ANN201 - bench.metrics.Trajectory
@@ -57,7 +30,7 @@ def load_trajectory(path: Path, source: str = "truth"):  # noqa: ANN201 - bench.
     the full attitude where logged), so a run's truth and an estimate of it compare as their TUM exports do."""
     from scipy.spatial.transform import Rotation
 
-    from bench.formats import read_tum
+    from bench.formats import read_estimate_csv, read_tum
     from bench.formats.tum import pose_rows
     from bench.metrics import Trajectory
     from bench.run import Run, RunError
@@ -129,9 +102,7 @@ def _evaluate(a: argparse.Namespace) -> int:
         v = getattr(a, name)
         if v is not None and not (math.isfinite(v) and v > 0):
             raise SpecError("<command line>", f"--{name.replace('_', '-')}", v, "a finite number > 0")
-    for name in ("plot", "json"):  # checked before anything is computed or written: one bad name leaves no other file
-        if getattr(a, name) is not None and getattr(a, name).is_dir():
-            raise SpecError("<command line>", f"--{name}", str(getattr(a, name)), "a file name, not a folder")
+    output_files(a, "plot", "json")
     if a.plot is not None:
         import matplotlib.pyplot as plt
 

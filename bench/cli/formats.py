@@ -60,8 +60,7 @@ def _tum_args(p: argparse.ArgumentParser) -> None:
 
 
 def _export_tum(a: argparse.Namespace) -> int:
-    from bench.cli.evaluate import read_estimate_csv
-    from bench.formats import run_to_tum
+    from bench.formats import read_estimate_csv, run_to_tum
     from bench.registry import Estimate
     from bench.run import Run
 

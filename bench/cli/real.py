@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from bench.cli import command, count
+from bench.cli import command, count, output_files
 from bench.schema import SpecError
 
 
@@ -77,8 +77,7 @@ def _real(a: argparse.Namespace) -> int:
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else every_window_plugin()
     if not methods:
         raise SpecError("<command line>", "--methods", a.methods, "at least one plugin name")
-    if a.json is not None and a.json.is_dir():
-        raise SpecError("<command line>", "--json", str(a.json), "a file name, not a folder")
+    output_files(a, "json")
     with staged_folder(a.out) as stage:  # every table's files appear in --out together, or none of them
         docs = _score_tables(a, plat, methods, stage)
     if a.json:
@@ -111,6 +110,20 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
     return docs
 
 
+def _remove_dead_stages(out: Path) -> None:
+    """The staging folders in ``out`` of a process that no longer runs (a killed ``real`` or ``real-gap``: the
+    ``finally`` below never ran); a live process's stage, named by its pid, is left alone."""
+    for d in out.glob(".staging.*.tmp"):
+        pid = d.name.split(".")[2]
+        try:
+            os.kill(int(pid), 0)
+            continue  # alive, or its pid taken by another process since: left for a later run
+        except PermissionError:
+            continue  # alive, another user's
+        except (ValueError, ProcessLookupError, OverflowError):
+            shutil.rmtree(d, ignore_errors=True)
+
+
 @contextlib.contextmanager
 def staged_folder(out: Path) -> Iterator[Path]:
     """A hidden folder inside ``out`` to write into (the same file system: the moves are renames); its files are
@@ -120,7 +133,8 @@ def staged_folder(out: Path) -> Iterator[Path]:
         raise SpecError("<command line>", "--out", str(out), "a folder, not a file")
     made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".staging.", suffix=".tmp", dir=out))
+    _remove_dead_stages(out)
+    stage = Path(tempfile.mkdtemp(prefix=f".staging.{os.getpid()}.", suffix=".tmp", dir=out))
     try:
         yield stage
         for f in sorted(stage.iterdir()):
@@ -183,8 +197,7 @@ def _real_gap(a: argparse.Namespace) -> int:
         config = dataclasses.replace(config, transient=False)
     if a.validation_steps is not None:
         config = dataclasses.replace(config, n_validation=a.validation_steps)
-    if a.json is not None and a.json.is_dir():
-        raise SpecError("<command line>", "--json", str(a.json), "a file name, not a folder")
+    output_files(a, "json")
     with staged_folder(a.out) as stage:  # the report's files appear in --out together, or none of them
         r = run_real_gap(a.data, stage, a.seed, platform=a.platform, terrain=a.terrain, config=config,
                          workers=a.workers, label=label)

@@ -19,6 +19,7 @@ import hashlib
 import json
 import math
 import os
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -120,7 +121,10 @@ def _remove_stale_temp_files(results_dir: Path) -> None:
     for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
         if folder.is_dir():
             for p in folder.rglob(".*.tmp"):
-                p.unlink(missing_ok=True)
+                if p.is_dir():  # e.g. the staging folder of a killed `skidbench real --out results/...`
+                    shutil.rmtree(p, ignore_errors=True)
+                else:
+                    p.unlink(missing_ok=True)
 
 
 def _extras_job(extras: list[str], results_dir: Path, quick: bool, workers: int, extended: bool,

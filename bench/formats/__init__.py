@@ -3,6 +3,7 @@
 * TUM (``timestamp tx ty tz qx qy qz qw``, one pose a line, ``#`` comments; the format of the
   TUM RGB-D benchmark, read by evo): :func:`write_tum`, :func:`read_tum`, :func:`run_to_tum`.
   Numbers are written as Python's repr (shortest exact text), so a float64 round-trips exactly.
+* Estimates (``skidbench estimate``'s CSV: t, x, y, yaw, ...): :func:`read_estimate_csv`, checked.
 * CSV and bags: :func:`import_csv`, :func:`import_bag`.  A *mapping* TOML file
   (:class:`ImportMapping`, see :func:`load_mapping`) names, per Run channel group, the CSV
   columns or the bag topic and the units the log uses; values are converted to SI at this
@@ -83,7 +84,7 @@ every public name is importable from ``bench.formats`` (the geodesy helpers from
 from __future__ import annotations
 
 from bench.formats.bag import import_bag
-from bench.formats.csv import import_csv
+from bench.formats.csv import import_csv, read_estimate_csv
 from bench.formats.mapping import (G0, DatumMap, ImportMapping, ImuMap, PlatformMap, PoseMap,  # noqa: F401
                                    TimeMap, WheelMap, load_mapping)
 from bench.formats.plausible import check_plausible, max_wheel_speed, max_yaw_rate
@@ -91,6 +92,6 @@ from bench.formats.tum import TUM_HEADER, read_tum, run_to_tum, write_tum  # noq
 
 __all__ = [
     "write_tum", "read_tum", "run_to_tum", "TimeMap", "WheelMap", "ImuMap", "PoseMap",
-    "DatumMap", "PlatformMap", "ImportMapping", "load_mapping", "import_csv", "import_bag", "check_plausible",
-    "max_wheel_speed", "max_yaw_rate",
+    "DatumMap", "PlatformMap", "ImportMapping", "load_mapping", "import_csv", "read_estimate_csv", "import_bag",
+    "check_plausible", "max_wheel_speed", "max_yaw_rate",
 ]

@@ -1,5 +1,6 @@
 """CSV log import (one row per log tick, a header line with column names, an empty cell is "no
-sample"): :func:`import_csv`, with the field counts and the numbers of every line checked.
+sample"): :func:`import_csv`, with the field counts and the numbers of every line checked; and the estimate
+CSV ``skidbench estimate`` writes (:func:`read_estimate_csv`).
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from bench.formats.plausible import _check_yaw_unit
 from bench.run import Run, RunError
 from bench.spec import SpecError
 
-__all__ = ["import_csv"]
+__all__ = ["import_csv", "read_estimate_csv"]
 
 
 # ------------------------------------------------------------------------------------------
@@ -145,3 +146,25 @@ def import_csv(csv_path: str | Path, mapping: ImportMapping | str | Path, *, che
             raise SpecError(mp.source_file or "<mapping>", f"{section}.yaw", "",
                             "converting velocities between body and world frame needs a yaw column") from None
     return _finish(cols, path, mp, platform, hints, check)
+
+
+def read_estimate_csv(path: Path) -> pd.DataFrame:
+    """An estimate CSV (``skidbench estimate``'s output): numeric columns t, x, y, yaw at least, t strictly
+    increasing; anything else is a :class:`RunError` naming the file, the column and the value."""
+    if not path.is_file():
+        raise RunError(str(path), "<file>", str(path), "file not found")
+    try:
+        frame = pd.read_csv(path)
+    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:  # EmptyDataError is a ValueError
+        raise RunError(str(path), "<file>", str(exc).splitlines()[0], "an estimate CSV (t, x, y, yaw)") from None
+    missing = [c for c in ("t", "x", "y", "yaw") if c not in frame.columns]
+    if missing:
+        raise RunError(str(path), ", ".join(missing), "missing", "an estimate CSV has columns t, x, y, yaw")
+    for c in ("t", "x", "y", "yaw"):
+        if not pd.api.types.is_numeric_dtype(frame[c]) or pd.api.types.is_bool_dtype(frame[c]):
+            raise RunError(str(path), c, str(frame[c].dtype), "expected numbers")
+    t = frame["t"].to_numpy(float)
+    if t.size < 2 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        bad = "fewer than 2 rows" if t.size < 2 else "not finite and strictly increasing"
+        raise RunError(str(path), "t", bad, "time stamps: at least 2, finite, strictly increasing")
+    return frame

@@ -76,6 +76,9 @@ class Effect:
     probe_grid: tuple[tuple[float, ...], ...] = ()  # screening points when there is no neutral value
     # whether the testbed can model this effect on a scenario (the slope: not on rough ground, bench.sim.ground)
     _modelled_on: Callable[[Scenario], bool] = field(default=lambda s: True, repr=False, compare=False)
+    # limits the scenario's geometry puts on the parameters, (lower, upper) each, within the Params' own bounds
+    _limits: Callable[[Scenario], tuple[tuple[float, float], ...]] | None = field(default=None, repr=False,
+                                                                                   compare=False)
 
     @property
     def n_params(self) -> int:
@@ -90,6 +93,14 @@ class Effect:
     def modelled_on(self, scn: Scenario) -> bool:
         """Whether the testbed can simulate this effect on ``scn``'s ground (otherwise it is not a candidate)."""
         return self._modelled_on(scn)
+
+    def bounds(self, scn: Scenario | None = None) -> tuple[tuple[float, float], ...]:
+        """(lower, upper) of each parameter: the Params' bounds, narrowed on ``scn`` by the limits its geometry sets
+        (the centre of mass between the axles and within the track: :meth:`bench.spec.Platform._check_whole`)."""
+        own = tuple((p.lower, p.upper) for p in self.params)
+        if scn is None or self._limits is None:
+            return own
+        return tuple((max(lo, a), min(hi, b)) for (lo, hi), (a, b) in zip(own, self._limits(scn)))
 
     def apply(self, scn: Scenario, cfg: ModelConfig, values: tuple[float, ...]) -> ModelConfig:
         """``cfg`` with this effect set to ``values``."""
@@ -134,6 +145,13 @@ def _radius_spec(scn, v):
 
 def _cg_spec(scn, v):
     return {"platform.cg_offset_x": v[0], "platform.cg_offset_y": v[1]}
+
+
+def _cg_limits(scn):
+    """The centre of mass at most 90 % of the way from the centre to an axle or a wheel line (testbed choice: the
+    spec refuses it on or beyond them, Platform._check_whole, and a margin keeps every wheel loaded)."""
+    x, y = 0.9 * scn.platform.wheelbase / 2, 0.9 * scn.platform.track / 2
+    return ((-x, x), (-y, y))
 
 
 def _payload_spec(scn, v):
@@ -303,7 +321,8 @@ CATALOGUE: tuple[Effect, ...] = (
         "lateral body velocity in turns (x_icr = -vy/wz), left/right torque split, yaw response; "
         "the turning torque changes with |x| (both signs alike), so x is fitted from both signs",
         "physics",
-        lambda s: (s.platform.cg_offset_x, s.platform.cg_offset_y), _phys(_cg_spec), _cg_spec),
+        lambda s: (s.platform.cg_offset_x, s.platform.cg_offset_y), _phys(_cg_spec), _cg_spec,
+        _limits=_cg_limits),
     Effect(
         "payload", "extra payload mass",
         "Extra mass carried at the centre of mass [kg]: more inertia, weight and friction load.",

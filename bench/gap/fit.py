@@ -167,9 +167,12 @@ class Layout:
     def to_theta(self, u: Sequence[float]) -> np.ndarray:
         return np.array([10.0 ** v if p.log else v for (_, _, p), v in zip(self.params, u)])
 
-    def bounds_u(self) -> tuple[np.ndarray, np.ndarray]:
-        lo = [math.log10(p.lower) if p.log else p.lower for (_, _, p) in self.params]
-        hi = [math.log10(p.upper) if p.log else p.upper for (_, _, p) in self.params]
+    def bounds_u(self, scn: Scenario | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The parameters' bounds in the fitted variables (log10 for a log parameter); on ``scn``, narrowed by its
+        geometry (:meth:`bench.gap.catalogue.Effect.bounds`)."""
+        b = [lim for e in self.effects for lim in e.bounds(scn)]
+        lo = [math.log10(a) if p.log else a for (_, _, p), (a, _) in zip(self.params, b)]
+        hi = [math.log10(c) if p.log else c for (_, _, p), (_, c) in zip(self.params, b)]
         return np.array(lo), np.array(hi)
 
     def steps_u(self) -> np.ndarray:
@@ -220,8 +223,8 @@ class FitResult:
 # ------------------------------------------------------------------------------------------------
 # Refinement, uncertainty, cross-validation
 # ------------------------------------------------------------------------------------------------
-def _clip(theta: np.ndarray, layout: Layout) -> np.ndarray:
-    lo, hi = layout.bounds_u()
+def _clip(theta: np.ndarray, layout: Layout, scn: Scenario | None = None) -> np.ndarray:
+    lo, hi = layout.bounds_u(scn)
     u = layout.to_u(theta)
     span = hi - lo
     u = np.clip(u, lo + 1e-6 * span, hi - 1e-6 * span)
@@ -238,8 +241,8 @@ def refine(ev: Evaluator, layout: Layout, theta0: Sequence[float], max_nfev: int
     scn = ev.scn
     if len(layout.effects) == 1 and layout.effects[0].kind == "delay":
         return refine_delay(ev, layout, float(theta0[0]), prior_jac)
-    lo, hi = layout.bounds_u()
-    u0 = layout.to_u(_clip(np.asarray(theta0, float), layout))
+    lo, hi = layout.bounds_u(scn)
+    u0 = layout.to_u(_clip(np.asarray(theta0, float), layout, scn))
     scale = layout.steps_u()  # optimise v = (u - u0) / probe step: O(1) variables, xtol meaningful
     h = FD_FRACTION
     nfev = [0]
@@ -368,7 +371,7 @@ def _result(ev: Evaluator, layout: Layout, u: np.ndarray, z: np.ndarray, J: np.n
     m = e.size
     se_u = np.full(p, np.nan)
     jitter = 0.0
-    lo, hi = layout.bounds_u()
+    lo, hi = layout.bounds_u(scn)
     # the previously selected (fixed) effects are refitted per fold and per jackknife block too
     Jcv = J if prior_jac is None or prior_jac.size == 0 else np.hstack([prior_jac, J])
     q = Jcv.shape[1]

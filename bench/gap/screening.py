@@ -24,6 +24,7 @@ from scipy.optimize import lsq_linear, minimize_scalar
 from bench.gap.catalogue import Effect, ModelConfig
 from bench.gap.fit import Evaluator, Layout, _clip, refine
 from bench.gap.residuals import ResidualSpace
+from bench.spec import Scenario
 
 
 @dataclass(frozen=True)
@@ -47,13 +48,13 @@ class Screen:
         return self.predicted_cost if self.simulated_cost is None else min(self.predicted_cost, self.simulated_cost)
 
 
-def _probe_thetas(effect: Effect, lay: Layout, neutral: Sequence[float]) -> list[np.ndarray]:
+def _probe_thetas(effect: Effect, lay: Layout, neutral: Sequence[float], scn: Scenario) -> list[np.ndarray]:
     """The linearised screening's probe points: each parameter moved by its probe step from the neutral value."""
     out = []
     for j, p in enumerate(effect.params):
         th = np.array(neutral, float)
         th[j] = th[j] * 10 ** p.step if p.log else th[j] + p.step
-        out.append(_clip(th, lay))
+        out.append(_clip(th, lay, scn))
     return out
 
 
@@ -70,7 +71,7 @@ def screen_configs(ev: Evaluator, effect: Effect, base: ModelConfig, measured_i_
             if measured_i_max is None:
                 return []
             return [lay.config(scn, (measured_i_max,))]
-        return [lay.config(scn, th) for th in _probe_thetas(effect, lay, neutral)]
+        return [lay.config(scn, th) for th in _probe_thetas(effect, lay, neutral, scn)]
     return []
 
 
@@ -111,11 +112,11 @@ def screen(ev: Evaluator, effect: Effect, base: ModelConfig, cost0: float, z0: n
     th0 = np.array(neutral, float)
     u0 = lay.to_u(th0)
     cols = []
-    for j, th in enumerate(_probe_thetas(effect, lay, neutral)):
+    for j, th in enumerate(_probe_thetas(effect, lay, neutral, scn)):
         du = lay.to_u(th)[j] - u0[j]
         cols.append((ev.z(lay.config(scn, th)) - z0) / du)
     S = np.column_stack(cols)
-    lo, hi = lay.bounds_u()
+    lo, hi = lay.bounds_u(scn)
     r = lsq_linear(S, -z0, bounds=(lo - u0, hi - u0))
     u = u0 + r.x
     pred = float(np.sum((z0 + S @ r.x) ** 2))

@@ -12,7 +12,8 @@ A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
     headline = true                # a claim of the abstract / conclusions / main comparative result
     scope = "paper" | "beyond"     # "beyond": our own check (NEES, no NaN, outages), never counted as the paper's
     kind + its fields              # ordering: metrics, margin; ratio: num, den, op, value; trend: series,
-                                   # direction, tolerance; within: metric, value, tolerance_abs | tolerance_rel;
+                                   # direction, tolerance; within: metric, value, tolerance_abs | tolerance_rel,
+                                   # margin;
                                    # flag: metric, expect
     tolerance_origin = "..."       # where a tolerance, margin or threshold other than 1 comes from
     fails_if = "..."               # optional; by default written by :func:`fails_if`
@@ -24,7 +25,8 @@ An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may na
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
 inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one the same way
 (the half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` must then meet a ``<`` / ``<=``
-value (``- margin`` a ``>`` / ``>=`` one).  A failing claim with a margin is *refuted* only when the whole interval
+value (``- margin`` a ``>`` / ``>=`` one).  A ``within`` claim may name one too: its value's interval must then
+lie inside the band, ``|metric - value| + margin <= tolerance``.  A failing claim with a margin is *refuted* only when the whole interval
 lies on the failing side (:func:`refuted`); when it is not, :func:`favours` says whether the means themselves lie on
 the claim's side (it fails only by the interval: the seeds cannot resolve it) or not.  Verdicts are computed from the numbers;
 nothing is written by hand: "holds", "does not hold", "calibration target" (a testbed parameter was chosen to
@@ -51,7 +53,7 @@ DIRECTIONS = ("decreasing", "increasing")
 PUBLISHED_ON = ("real robot",)
 _KIND_FIELDS = {
     "ordering": ("metrics", "margin"), "ratio": ("num", "den", "op", "value", "margin"),
-    "trend": ("series", "direction", "tolerance"), "within": ("metric", "value", "tolerance_abs", "tolerance_rel"),
+    "trend": ("series", "direction", "tolerance"), "within": ("metric", "value", "tolerance_abs", "tolerance_rel", "margin"),
     "flag": ("metric", "expect"),
 }
 _COMMON_FIELDS = ("id", "text", "source", "quote", "headline", "scope", "kind", "tolerance_origin", "fails_if",
@@ -67,6 +69,8 @@ def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
         return [claim["num"], claim["den"]] + ([claim["margin"]] if "margin" in claim else [])
     if kind == "trend":
         return list(claim["series"])
+    if kind == "within":
+        return [claim["metric"]] + ([claim["margin"]] if "margin" in claim else [])
     return [claim["metric"]]
 
 
@@ -181,7 +185,10 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
         v = get(claim["metric"])
         target = float(claim["value"])
         tol, tol_text = _within_tolerance(claim)
-        return abs(v - target) <= tol, f"{_fmt(v)} vs {target} {tol_text}"
+        margin = get(claim["margin"]) if "margin" in claim else 0.0
+        by = f" (its interval ± {_fmt(margin)}, {claim['margin'].split('.')[-1]}, inside the band)" \
+            if "margin" in claim else ""
+        return abs(v - target) + margin <= tol, f"{_fmt(v)} vs {target} {tol_text}{by}"
     if kind == "flag":
         v = get(claim["metric"])
         return bool(v) == bool(claim.get("expect", True)), f"{claim['metric'].split('.')[-1]} = {_fmt(bool(v))}"
@@ -194,9 +201,12 @@ def refuted(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | No
     value, ``+ margin`` short of a ``>`` / ``>=`` one), False when the bound lies inside it (the seeds cannot tell:
     not refuted).  None when the claim holds, is not evaluated or has no margin (no interval to read)."""
     holds, _ = evaluate_claim(claim, metrics)
-    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio"):
+    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio", "within"):
         return None
     m = _number(metrics.get(claim["margin"]))
+    if claim["kind"] == "within":  # the whole interval outside the band
+        tol, _ = _within_tolerance(claim)
+        return abs(_number(metrics.get(claim["metric"])) - float(claim["value"])) - m > tol
     if claim["kind"] == "ordering":
         vals = [_number(metrics.get(x)) for x in claim["metrics"]]
         return any(a - m > b for a, b in zip(vals, vals[1:]))
@@ -210,7 +220,7 @@ def favours(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | No
     so that it fails only by the seeds' interval; False when they are against it.  None when the claim holds, is
     not evaluated or has no margin."""
     holds, _ = evaluate_claim(claim, metrics)
-    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio"):
+    if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio", "within"):
         return None
     return evaluate_claim({k: v for k, v in claim.items() if k != "margin"}, metrics)[0]
 
@@ -241,7 +251,9 @@ def fails_if(claim: Mapping[str, Any]) -> str:
     if kind == "within":
         target = float(claim["value"])
         tol, _ = _within_tolerance(claim)
-        return f"{claim['metric']} outside [{target - tol:.6g}, {target + tol:.6g}]"
+        m = f" (+- {claim['margin']})" if "margin" in claim else ""
+        return f"{claim['metric']}{m} reaches outside [{target - tol:.6g}, {target + tol:.6g}]" if m else \
+            f"{claim['metric']} outside [{target - tol:.6g}, {target + tol:.6g}]"
     if kind == "flag":
         return f"{claim['metric']} is {'false (0)' if claim.get('expect', True) else 'true (non-zero)'}"
     raise ValueError(f"unknown claim kind {kind}")
@@ -261,7 +273,7 @@ def needs_tolerance_origin(claim: Mapping[str, Any]) -> str | None:
     """The field that makes a claim need a ``tolerance_origin`` (a tolerance, margin or a threshold other than a
     plain comparison with 1), or None."""
     kind = claim.get("kind")
-    if kind in ("ordering", "ratio") and "margin" in claim:
+    if kind in ("ordering", "ratio", "within") and "margin" in claim:
         return "margin"
     if kind == "ratio" and float(claim.get("value", 1.0)) != 1.0:
         return "value"

@@ -8,10 +8,12 @@ import json
 import os
 import platform as _platform
 import subprocess
+from importlib.machinery import EXTENSION_SUFFIXES
+from pathlib import Path
 
 from bench.reproduce.runner import REPO
 
-__all__ = ["code_key", "git_commit", "package_versions"]
+__all__ = ["code_key", "compiled_extensions", "git_commit", "package_versions"]
 
 
 _WHERE_ONLY = ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE")  # say where caches are, not what a result is
@@ -19,7 +21,8 @@ _WHERE_ONLY = ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE")  # say where caches ar
 
 def code_key(*extra: str) -> str:
     """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
-    platform, terrain and paper files, the installed package versions, plus ``extra``."""
+    platform, terrain and paper files, the installed package versions, which C extensions run
+    (:func:`compiled_extensions`), plus ``extra``."""
     h = hashlib.sha256()
     for folder, pattern in (("bench", "**/*.py"), ("bench", "**/*.c"), ("methods", "**/*.py"), ("methods", "**/*.c"),
                             ("scenarios", "**/*.toml"), ("bench/scenarios", "**/*.toml")):  # checkout / installed
@@ -27,11 +30,34 @@ def code_key(*extra: str) -> str:
             h.update(str(p.relative_to(REPO)).encode())
             h.update(p.read_bytes())
     h.update(json.dumps(package_versions(), sort_keys=True).encode())
+    h.update(json.dumps(compiled_extensions(), sort_keys=True).encode())
     h.update(json.dumps(sorted((k, v) for k, v in os.environ.items() if k.startswith("SKIDBENCH_")
                                and k not in _WHERE_ONLY)).encode())
     for e in extra:
         h.update(e.encode())
     return h.hexdigest()[:24]
+
+
+def compiled_extensions(root: Path = REPO) -> dict[str, str]:
+    """The C extensions of bench/ and methods/ and whether they run: ``{module: "built" | "not built" | "off"}``
+    ("off": built, but ``SKIDBENCH_KERNEL=python`` runs the Python reference instead).  Found by file (a ``.c``
+    source, an extension module this interpreter loads beside it), never imported.  Part of the result's identity:
+    the testbed's step is the same bits either way, but Mandow's C cost is not (its sums run in order, numpy's
+    pairwise), and the DE polish carries that last bit to the 5th digit of the league's DE row (README, "The
+    testbed's C step")."""
+    suffixes = sorted(EXTENSION_SUFFIXES, key=len, reverse=True)
+    off = os.environ.get("SKIDBENCH_KERNEL", "c") == "python"
+    found: dict[str, str] = {}
+    for folder in ("bench", "methods"):
+        for p in sorted((root / folder).rglob("*")):
+            rel = p.relative_to(root).as_posix()
+            if rel.endswith(".c"):
+                found.setdefault(rel[:-2].replace("/", "."), "not built")
+                continue
+            suffix = next((s for s in suffixes if rel.endswith(s)), None)
+            if suffix is not None and "." not in p.name[:-len(suffix)]:
+                found[rel[:-len(suffix)].replace("/", ".")] = "off" if off else "built"
+    return dict(sorted(found.items()))
 
 
 def git_commit() -> str:

@@ -114,8 +114,9 @@ def indexes(ctx: Any) -> dict[str, float]:
         f"{list(R.SETTINGS.interval_seeds)} ({'30 s' if ctx.quick else '60 s'} each): one K per condition and seed. "
         "*_half95: half-width of the 95 % Student-t interval of the mean over the seeds; the comparisons are paired "
         "per seed (a seed draws the same joystick path on every terrain and tire). Published values (real robot): "
-        "Tables I-II; the testbed's tire platforms differ only in wheel radius and effective-radius scale, and its "
-        "centre of mass is at the frame origin. " + R.terrain_text()))
+        "Tables I-II; the testbed's tire platforms differ in wheel radius, tire pressure or modulus and rolling "
+        "resistance (scenarios/platforms/p3at_*.toml), and its centre of mass is the labelled testbed draw "
+        "(-4.0, +2.6) mm from the frame origin. " + R.terrain_text()))
     f = {k: f"{v:+.4f}" for k, v in out.items()}
     ctx.note("y_icr_v_behind", "y_ICRv per condition (mean over seeds): " + ", ".join(
         f"{key[c]} {f[key[c] + '_y_icr_v_mean']}" for c in R.CONDITIONS) + f" m; published mean "

@@ -21,10 +21,13 @@ Paper item -> compute function (each returns ``dict[str, float]``; ids ``<table>
 
 Experiments (scenarios ``wang_circle_grid`` and ``wang_validation_path``: P3-AT, 20 psi, tile, laser
 reference at 135 Hz)
-* Grid (eqs. (26)-(27)): curvature ratio 0..7 x speed 0.1..0.5 m/s (quick: speeds 0.1 and 0.5), seed 0.
-  The scenario's ``v`` is the OUTER tread speed (the testbed's ``v_curvature_ratio`` command), not the centre
-  speed of eq. (27): with a centre speed of 0.5 m/s, curvature ratio 1 would need 1.0 m/s on the outer tread,
-  twice the P3-AT's effective maximum (Sec. 3.5); with the outer speed every run stays within it.
+* Grid (eqs. (26)-(27)): curvature ratio 0..7 x speed 0.1..0.5 m/s (quick: speeds 0.1 and 0.5), seed 0,
+  turning clockwise as Wang's robot (Sec. 3.2, Fig. 9) and his validation path (eq. (48): lambda -1 .. -11); the
+  curvature ratios are named by their magnitude, as eq. (44) uses them.  The speed is the OUTER tread speed, not
+  the centre speed of eq. (27): with a centre speed of 0.5 m/s, curvature ratio 1 would need 1.0 m/s on the outer
+  tread, twice the P3-AT's effective maximum (Sec. 3.5); with the outer speed every run stays within it.  (Until
+  stop 52 the grid turned counter-clockwise: the testbed P3-AT's CoM, 2.6 mm left of centre, makes chi 0.009-0.010
+  higher clockwise, so a counter-clockwise fit was biased for the clockwise path.)
 * Run length: the first ``skip_start`` = 1 s (wheel spin-up from standstill) is excluded and the steady part
   lasts one full turn (2 pi; quick: 1.5 rad) at the yaw rate the command gives with chi = 1.5, since Wang
   measures "the rotation angle change during entire cycle of motion" (Sec. 3.2).
@@ -110,11 +113,15 @@ def grid_duration(curvature_ratio: float, speed: float, rotation: float, track: 
 
 
 def grid_scenario(curvature_ratio: int, speed: float, rotation: float, s: Settings = SETTINGS) -> Scenario:
+    """A grid run: a steady clockwise circle (Sec. 3.2, Fig. 9: "the robot moves clockwise"; the eq. (48) path turns
+    clockwise too) with the left (outer) tread at ``speed`` and the right at ``speed (lambda - 1) / (lambda + 1)``,
+    so that eq. (26)'s curvature ratio (v_l + v_r) / (v_r - v_l) is ``-curvature_ratio``."""
     track = load_scenario("wang_circle_grid").platform.track
     dur = grid_duration(curvature_ratio, speed, rotation, track, s)
+    inner = speed * (curvature_ratio - 1.0) / (curvature_ratio + 1.0)
     return load_scenario("wang_circle_grid", {
-        "id": f"wang_circle_cr{curvature_ratio}_v{speed:.1f}",
-        "command.segments": [[dur, float(speed), float(curvature_ratio)]], "duration": dur})
+        "id": f"wang_circle_cw_cr{curvature_ratio}_v{speed:.1f}",
+        "command.segments": [[dur, float(speed), float(inner)]], "duration": dur})
 
 
 def lack_of_fit(groups: Sequence[Sequence[float]], residuals: Sequence[float], n_params: int = 2
@@ -188,7 +195,8 @@ def _evaluate(ctx: Any, s: Settings = SETTINGS) -> Evaluation:
     seeds = s.validation_seeds_quick if quick else s.validation_seeds_full
     keys = [(cr, v) for cr in s.curvature_ratios for v in speeds]
     straight = load_scenario("wang_circle_grid", {
-        "id": "wang_straight_tile", "command.segments": [[s.straight_duration, s.straight_speed, math.inf]],
+        "id": "wang_straight_tile",
+        "command.segments": [[s.straight_duration, s.straight_speed, s.straight_speed]],
         "duration": s.straight_duration})
     val_scn = load_scenario("wang_validation_path")
     runs = ctx.simulate_many([(grid_scenario(cr, v, rotation, s), s.grid_seed) for cr, v in keys]
@@ -251,7 +259,7 @@ def table3(ctx: Any) -> dict[str, float]:
     means = [out[f"chi_lambda{cr}"] for cr in crs]
     out["curvature_range"] = (max(means) - min(means)) / float(np.mean(all_chi))
     for cr in crs:
-        measured = [ev.grid[(cr, v)].curvature_ratio for v in ev.speeds]
+        measured = [abs(ev.grid[(cr, v)].curvature_ratio) for v in ev.speeds]  # clockwise: lambda is -cr
         out[f"measured_curvature_ratio_lambda{cr}"] = float(np.mean(measured))
         out[f"min_rotation_lambda{cr}"] = float(min(abs(ev.grid[(cr, v)].phi) for v in ev.speeds))
     pub = np.array([W.TABLE_3[cr][0] for cr in crs])
@@ -399,7 +407,7 @@ def _fig12(ctx: Any, ev: Evaluation) -> None:
     for i, v in enumerate(ev.speeds):
         ax[0].plot(crs, [ev.grid[(cr, v)].chi for cr in crs], "o-", color=cmap(i / max(1, len(ev.speeds) - 1)),
                    label=f"v = {v:.1f} m/s")
-    ax[0].set_xlabel("curvature ratio lambda (eq. 13)")
+    ax[0].set_xlabel("curvature ratio |lambda| (eq. 13; clockwise)")
     ax[0].set_ylabel("chi (eqs. 15, 25)")
     ax[0].set_title("(a) chi vs curvature ratio")
     ax[0].legend(fontsize=8)
@@ -420,7 +428,7 @@ def _fig13(ctx: Any, ev: Evaluation) -> None:
     crs = np.array(SETTINGS.curvature_ratios)
     fig, ax = plt.subplots(figsize=(6.5, 4.5))
     lam = np.linspace(0.0, 7.5, 200)
-    allx = [g.curvature_ratio for g in ev.grid.values()]
+    allx = [abs(g.curvature_ratio) for g in ev.grid.values()]  # the grid turns clockwise: lambda < 0
     ally = [g.chi for g in ev.grid.values()]
     ax.plot(allx, ally, ".", color="tab:blue", alpha=0.5, label="testbed, every run")
     stats = [speed_statistics([ev.grid[(int(cr), v)].chi for v in ev.speeds]) for cr in crs]
