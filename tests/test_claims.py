@@ -94,6 +94,9 @@ def test_refuted_only_when_the_whole_interval_is_on_the_failing_side():
     y = {"kind": "within", "metric": "t.x", "value": -0.012, "tolerance_abs": 0.004, "margin": "t.m"}
     assert R.evaluate_claim(y, {"t.x": -0.002353, "t.m": 0.0103})[0] is False and rf(y, x=-0.002353, m=0.0103) is False
     assert rf(y, x=0.01, m=0.0103) is True and R.evaluate_claim(y, {"t.x": -0.012, "t.m": 0.003})[0] is True
+    # a negative half-width (a defect of a metric) never widens the band or narrows an ordering's gap
+    assert R.evaluate_claim(y, {"t.x": -0.02, "t.m": -0.01})[0] is False
+    assert R.evaluate_claim(o, {"t.a": 1.0, "t.b": 0.9, "t.m": -0.5})[0] is False
 
 
 def test_trend_direction_step_tolerance_and_end_points():

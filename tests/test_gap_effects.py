@@ -192,3 +192,13 @@ def test_the_centre_of_mass_search_stays_inside_what_the_spec_accepts():
     x, y = theta
     assert replace(p3at, **{"platform.cg_offset_x": x, "platform.cg_offset_y": y}).platform._check_whole() is None
     assert replace(p3at, **{"platform.cg_offset_x": -0.15}).platform._check_whole() is not None
+
+
+def test_a_fit_on_the_scenarios_limit_is_reported_at_its_bound():
+    """The report's "(at bound)" reads the bounds the fit used (the entry's "bounds"), not the catalogue's."""
+    from bench.gap.report import uncertainty_text
+
+    lim = 0.45 * load_scenario("gap_example").platform.wheelbase
+    at_limit = -lim + 1e-7
+    assert "at bound" not in uncertainty_text("cg_offset", "cg_offset_x", at_limit, 0.01)
+    assert f"(at bound {-lim:g})" in uncertainty_text("cg_offset", "cg_offset_x", at_limit, 0.01, bounds=(-lim, lim))

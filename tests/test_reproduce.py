@@ -336,24 +336,39 @@ def test_the_result_key_ignores_where_the_caches_are(monkeypatch):
 
 
 def test_compiled_extensions_are_found_by_file_and_enter_the_result_key(tmp_path, monkeypatch):
-    """A C source with a module this interpreter loads beside it is "built", one without is "not built", and
-    SKIDBENCH_KERNEL=python turns a built one "off"; a module built for another interpreter does not count.  The
-    result cache's key changes with that state: a result computed with Mandow's numpy cost (a checkout whose build
-    failed) is never served to one with the C cost (the DE polish moves the league's DE row in the 5th digit)."""
+    """A C source with a module this interpreter loads beside it is "built" (a copy of the testbed's own), one whose
+    source changed after it was built "stale", one that does not load "fails to load", one without a module
+    "not built"; SKIDBENCH_KERNEL=python turns a built one "off"; a module built for another interpreter does not
+    count.  The result cache's key changes with that state: a result computed with Mandow's numpy cost (a checkout
+    whose build failed) is never served to one with the C cost (the DE polish moves the league's DE row in the 5th
+    digit)."""
+    import os
+    import shutil
     from importlib.machinery import EXTENSION_SUFFIXES
 
     from bench.reproduce import provenance as P
+    from bench.sim import testbed
 
+    if testbed.KERNEL is None:
+        pytest.skip("the testbed's C step is not built here")
     monkeypatch.delenv("SKIDBENCH_KERNEL", raising=False)
-    (tmp_path / "bench" / "sim").mkdir(parents=True)
-    (tmp_path / "methods" / "paper").mkdir(parents=True)
-    (tmp_path / "bench" / "sim" / "_step.c").write_text("")
-    (tmp_path / "bench" / "sim" / f"_step{EXTENSION_SUFFIXES[0]}").write_bytes(b"")
-    (tmp_path / "methods" / "paper" / "_cost.c").write_text("")
-    (tmp_path / "methods" / "paper" / "_cost.cpython-299-x86_64-linux-gnu.so.bak").write_bytes(b"")
-    assert P.compiled_extensions(tmp_path) == {"bench.sim._step": "built", "methods.paper._cost": "not built"}
+    sim, old, paper = tmp_path / "bench" / "sim", tmp_path / "bench" / "old", tmp_path / "methods" / "paper"
+    for d in (sim, old, paper):
+        d.mkdir(parents=True)
+    for d in (sim, old):  # the module must keep its name: its init function is PyInit__kernel
+        (d / "_kernel.c").write_text("")
+        shutil.copy(testbed.KERNEL.__file__, d / f"_kernel{EXTENSION_SUFFIXES[0]}")
+    later = os.stat(old / f"_kernel{EXTENSION_SUFFIXES[0]}").st_mtime + 10
+    os.utime(old / "_kernel.c", (later, later))
+    (paper / "_cost.c").write_text("")
+    (paper / "_cost.cpython-299-x86_64-linux-gnu.so.bak").write_bytes(b"")
+    (paper / "_broken.c").write_text("")
+    (paper / f"_broken{EXTENSION_SUFFIXES[0]}").write_bytes(b"not an ELF file")
+    assert P.compiled_extensions(tmp_path) == {
+        "bench.old._kernel": "stale", "bench.sim._kernel": "built", "methods.paper._broken": "fails to load",
+        "methods.paper._cost": "not built"}
     monkeypatch.setenv("SKIDBENCH_KERNEL", "python")
-    assert P.compiled_extensions(tmp_path)["bench.sim._step"] == "off"
+    assert P.compiled_extensions(tmp_path)["bench.sim._kernel"] == "off"
     monkeypatch.delenv("SKIDBENCH_KERNEL")
 
     base = P.code_key("mandow2007", "False")

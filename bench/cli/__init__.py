@@ -17,6 +17,7 @@ in :mod:`bench.cli.real`), :mod:`bench.cli.formats` (import-drive, export-tum, i
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -106,24 +107,42 @@ def main(argv: Sequence[str] | None = None) -> int:
         reexec_pinned()
     ap = build_parser()
     a = ap.parse_args(argv)
-    # warnings are held until the command ends: shown after it when it succeeds (or fails on a defect), dropped when
-    # it stops on bad input, whose report is one line (numpy's "invalid value" on a bad column came before it)
-    with warnings.catch_warnings(record=True) as held:
-        try:
-            code, failure = COMMANDS[a.cmd][1](a), None
-        except KeyboardInterrupt:
-            print("interrupted", file=sys.stderr)
-            return 130
-        except Exception as exc:
-            code, failure = 2, exc
-    if failure is not None and _input_error(failure):
-        print(f"error: {_one_line(failure)}", file=sys.stderr)
-        return 2
-    for w in held:
-        warnings.showwarning(w.message, w.category, w.filename, w.lineno, w.file, w.line)
-    if failure is not None:
-        raise failure
+    # warnings of this process are held until the command ends: shown after it when it succeeds, fails on a defect or
+    # is interrupted, dropped when it stops on bad input, whose report is one line (numpy's "invalid value" on a bad
+    # column came before it).  A forked worker inherits the hook but prints its warnings as they come.
+    held: list[tuple] = []
+    show, pid = warnings.showwarning, os.getpid()
+
+    def hold(*w: Any) -> None:
+        if os.getpid() == pid:
+            held.append(w)
+        else:
+            show(*w)
+
+    try:
+        with warnings.catch_warnings():
+            warnings.showwarning = hold
+            code = COMMANDS[a.cmd][1](a)
+    except KeyboardInterrupt:
+        _replay(held, show)
+        print("interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        if _input_error(exc):
+            print(f"error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+        _replay(held, show)
+        raise
+    except BaseException:  # SystemExit
+        _replay(held, show)
+        raise
+    _replay(held, show)
     return code
+
+
+def _replay(held: list[tuple], show: Callable[..., None]) -> None:
+    for w in held:
+        show(*w)
 
 
 def _one_line(exc: Exception) -> str:

@@ -110,17 +110,25 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
     return docs
 
 
+def dead_stage(folder: Path) -> bool:
+    """Whether ``folder`` is the staging folder (``.staging.<pid>.<random>.tmp``) of a process that no longer runs: a
+    killed ``real`` or ``real-gap`` (the ``finally`` of :func:`staged_folder` never ran).  A live process's stage,
+    one of another user's, one named otherwise, and any on a system without POSIX signals are not."""
+    parts = folder.name.split(".")
+    if os.name != "posix" or len(parts) < 4 or parts[1] != "staging" or not parts[2].isdigit():
+        return False
+    try:
+        os.kill(int(parts[2]), 0)
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OverflowError):
+        return False  # alive (another user's), or not a pid this system has: left alone
+    return False  # alive, or its pid taken by another process since: left for a later run
+
+
 def _remove_dead_stages(out: Path) -> None:
-    """The staging folders in ``out`` of a process that no longer runs (a killed ``real`` or ``real-gap``: the
-    ``finally`` below never ran); a live process's stage, named by its pid, is left alone."""
     for d in out.glob(".staging.*.tmp"):
-        pid = d.name.split(".")[2]
-        try:
-            os.kill(int(pid), 0)
-            continue  # alive, or its pid taken by another process since: left for a later run
-        except PermissionError:
-            continue  # alive, another user's
-        except (ValueError, ProcessLookupError, OverflowError):
+        if d.is_dir() and dead_stage(d):
             shutil.rmtree(d, ignore_errors=True)
 
 

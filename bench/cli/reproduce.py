@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from bench.cli import _progress, command, count
-from bench.cli.real import _extra_real, data_root
+from bench.cli.real import _extra_real, data_root, dead_stage
 from bench.report.io import atomic_write_text
 
 
@@ -121,10 +121,10 @@ def _remove_stale_temp_files(results_dir: Path) -> None:
     for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
         if folder.is_dir():
             for p in folder.rglob(".*.tmp"):
-                if p.is_dir():  # e.g. the staging folder of a killed `skidbench real --out results/...`
-                    shutil.rmtree(p, ignore_errors=True)
-                else:
+                if not p.is_dir():
                     p.unlink(missing_ok=True)
+                elif dead_stage(p):  # the stage of a killed `skidbench real --out results/...` (a live one stays)
+                    shutil.rmtree(p, ignore_errors=True)
 
 
 def _extras_job(extras: list[str], results_dir: Path, quick: bool, workers: int, extended: bool,

@@ -148,9 +148,10 @@ def import_csv(csv_path: str | Path, mapping: ImportMapping | str | Path, *, che
     return _finish(cols, path, mp, platform, hints, check)
 
 
-def read_estimate_csv(path: Path) -> pd.DataFrame:
+def read_estimate_csv(path: str | Path) -> pd.DataFrame:
     """An estimate CSV (``skidbench estimate``'s output): numeric columns t, x, y, yaw at least, t strictly
     increasing; anything else is a :class:`RunError` naming the file, the column and the value."""
+    path = Path(path)
     if not path.is_file():
         raise RunError(str(path), "<file>", str(path), "file not found")
     try:

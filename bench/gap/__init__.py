@@ -157,6 +157,7 @@ def _effect_entry(name: str, fit: FitResult, scn: Scenario) -> dict[str, Any]:
         "parameters": {p.name: fit.values[name][p.name] for p in e.params},
         "uncertainty": {p.name: fit.stderr[name][p.name] for p in e.params},
         "units": {p.name: p.unit for p in e.params},
+        "bounds": {p.name: list(b) for p, b in zip(e.params, e.bounds(scn))},
         "fold_estimates": fit.fold_values.get(name, {}),
         "nominal": dict(zip((p.name for p in e.params), e.neutral(scn) or (None,) * e.n_params)),
         "overrides": e.spec_overrides(scn, vals),

@@ -100,7 +100,10 @@ class Effect:
         own = tuple((p.lower, p.upper) for p in self.params)
         if scn is None or self._limits is None:
             return own
-        return tuple((max(lo, a), min(hi, b)) for (lo, hi), (a, b) in zip(own, self._limits(scn)))
+        out = tuple((max(lo, a), min(hi, b)) for (lo, hi), (a, b) in zip(own, self._limits(scn), strict=True))
+        if not all(lo < hi for lo, hi in out):
+            raise ValueError(f"{self.name}: no parameter range left on {scn.id}: {out}")
+        return out
 
     def apply(self, scn: Scenario, cfg: ModelConfig, values: tuple[float, ...]) -> ModelConfig:
         """``cfg`` with this effect set to ``values``."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import numpy as np
 
@@ -46,18 +46,21 @@ def window_text(conc: Mapping[str, Any]) -> str:
     return f"{a:.1f} s of run {runs[0]} to {b:.1f} s of run {runs[1]}"
 
 
-def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2) -> str:
+def uncertainty_text(effect: str, param: str, value: float, stderr: float | None, digits: int = 2,
+                     bounds: Sequence[float] | None = None) -> str:
     """The std. error cell: "not identified" when the data do not determine the parameter (infinite
-    standard error, bench.gap.fit), and "(at bound)" when the fit sits on the catalogue's bound."""
+    standard error, bench.gap.fit), and "(at bound)" when the fit sits on a bound: ``bounds`` (the scenario's, as the
+    fit used them: the entry's "bounds"), else the catalogue's."""
     if stderr is not None and math.isinf(stderr):
         txt = "not identified"
     else:
         txt = "n/a" if stderr is None or not math.isfinite(stderr) else f"{stderr:.{digits}g}"
     prm = {p.name: p for p in get(effect).params}.get(param)
     if prm is not None and math.isfinite(value):
-        tol = 1e-4 * (prm.upper - prm.lower)  # the optimiser stops just inside a bound
-        if value <= prm.lower + tol or value >= prm.upper - tol:
-            txt += f" (at bound {prm.lower if value <= prm.lower + tol else prm.upper:g})"
+        lo, hi = (prm.lower, prm.upper) if bounds is None else (float(bounds[0]), float(bounds[1]))
+        tol = 1e-4 * (hi - lo)  # the optimiser stops just inside a bound
+        if value <= lo + tol or value >= hi - tol:
+            txt += f" (at bound {lo if value <= lo + tol else hi:g})"
     return txt
 
 
@@ -125,8 +128,8 @@ def markdown(res: "GapResult", hidden: Mapping[str, Any] | None = None, figure: 
                 unit = e["units"].get(k, "")
                 folds = ", ".join(_f(x) for x in e["fold_estimates"].get(k, []))
                 ov = ", ".join(f"`{kk}={_f(vv, 5)}`" for kk, vv in e["overrides"].items())
-                L.append(f"| {e['name']} | {k} [{unit}] | {_f(v, 5)} | {uncertainty_text(e['name'], k, v, e['uncertainty'][k])} | "
-                         f"{_f(e['nominal'].get(k))} | {folds} | {ov} |")
+                se = uncertainty_text(e["name"], k, v, e["uncertainty"][k], bounds=e.get("bounds", {}).get(k))
+                L.append(f"| {e['name']} | {k} [{unit}] | {_f(v, 5)} | {se} | {_f(e['nominal'].get(k))} | {folds} | {ov} |")
         L.append("")
         L.append(STDERR_NOTE)
         L.append("")

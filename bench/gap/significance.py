@@ -183,7 +183,8 @@ def detection_limits(space: ResidualSpace, scn: Scenario, effects: Sequence[Effe
                 du_chi2 = math.inf
             du_gain = math.sqrt(min_gain * j_noise * max(ig[j, j], 0.0))
             du, how = (du_chi2, "whole-log chi2") if du_chi2 <= du_gain else (du_gain, "absolute gain")
-            span = (math.log10(prm.upper) - math.log10(prm.lower)) if prm.log else prm.upper - prm.lower
+            lo, hi = e.bounds(scn)[j]  # the catalogue's, narrowed by the scenario's geometry
+            span = (math.log10(hi) - math.log10(lo)) if prm.log else hi - lo
             if not du <= span:  # beyond the catalogue's bounds: these data would not detect it
                 lim[prm.name] = {"change": math.inf, "unit": prm.unit, "how": "beyond the bounds"}
             elif prm.log:

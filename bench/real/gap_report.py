@@ -72,7 +72,7 @@ def _markdown(doc: Mapping[str, Any], figure: bool, stem: str = "husky_gap") -> 
         add("|---|---|---:|---:|---:|---|")
         for e in rows:
             for k, v in e["parameters"].items():
-                se = uncertainty_text(e["name"], k, v, e["uncertainty"].get(k))
+                se = uncertainty_text(e["name"], k, v, e["uncertainty"].get(k), bounds=e.get("bounds", {}).get(k))
                 add(f"| {e['name']} | {k} [{e['units'].get(k, '')}] | {_g(v, 5)} | {se} | "
                     f"{_g(e['nominal'].get(k))} | {', '.join(_g(x) for x in e['fold_estimates'].get(k, []))} |")
         add("")

@@ -157,7 +157,7 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
     if kind == "ordering":  # a < b < ...; with "margin" (a metric, e.g. 2 standard errors): a + margin < b ...
         ids = claim["metrics"]
         vals = [get(m) for m in ids]
-        margin = get(claim["margin"]) if "margin" in claim else 0.0
+        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
         ok = all(a + margin < b for a, b in zip(vals, vals[1:]))
         text = " < ".join(f"{name} = {_fmt(v)}" for name, v in zip(_labels(list(ids)), vals))
         if "margin" in claim:
@@ -169,7 +169,7 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
             return None, f"{claim['den'].split('.')[-1]} = 0: no ratio"
         r = n / d
         op, val = claim.get("op", "<="), float(claim["value"])
-        margin = get(claim["margin"]) if "margin" in claim else 0.0
+        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
         past = r + margin if op in ("<", "<=") else r - margin  # the ratio's interval end nearest the value
         ok = {"<": past < val, "<=": past <= val, ">": past > val, ">=": past >= val}[op]
         num, den = _labels([claim["num"], claim["den"]])
@@ -185,8 +185,8 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
         v = get(claim["metric"])
         target = float(claim["value"])
         tol, tol_text = _within_tolerance(claim)
-        margin = get(claim["margin"]) if "margin" in claim else 0.0
-        by = f" (its interval ± {_fmt(margin)}, {claim['margin'].split('.')[-1]}, inside the band)" \
+        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
+        by = f" (its interval ± {claim['margin'].split('.')[-1]} = {_fmt(margin)} must lie inside the band)" \
             if "margin" in claim else ""
         return abs(v - target) + margin <= tol, f"{_fmt(v)} vs {target} {tol_text}{by}"
     if kind == "flag":
@@ -198,12 +198,13 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
 def refuted(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | None:
     """For a failing claim with a ``margin`` (the seeds' 95 % interval): True when the interval lies wholly on the
     failing side (an ordering: ``a - margin > b`` at some step; a ratio: ``num / den - margin`` past a ``<`` / ``<=``
-    value, ``+ margin`` short of a ``>`` / ``>=`` one), False when the bound lies inside it (the seeds cannot tell:
+    value, ``+ margin`` short of a ``>`` / ``>=`` one; a within: ``|metric - value| - margin`` beyond the
+    tolerance), False when the bound lies inside it (the seeds cannot tell:
     not refuted).  None when the claim holds, is not evaluated or has no margin (no interval to read)."""
     holds, _ = evaluate_claim(claim, metrics)
     if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio", "within"):
         return None
-    m = _number(metrics.get(claim["margin"]))
+    m = max(_number(metrics.get(claim["margin"])), 0.0)
     if claim["kind"] == "within":  # the whole interval outside the band
         tol, _ = _within_tolerance(claim)
         return abs(_number(metrics.get(claim["metric"])) - float(claim["value"])) - m > tol

@@ -4,6 +4,7 @@ and :func:`code_key`, the hash of everything a paper's result depends on (the ke
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import json
 import os
 import platform as _platform
@@ -39,12 +40,13 @@ def code_key(*extra: str) -> str:
 
 
 def compiled_extensions(root: Path = REPO) -> dict[str, str]:
-    """The C extensions of bench/ and methods/ and whether they run: ``{module: "built" | "not built" | "off"}``
-    ("off": built, but ``SKIDBENCH_KERNEL=python`` runs the Python reference instead).  Found by file (a ``.c``
-    source, an extension module this interpreter loads beside it), never imported.  Part of the result's identity:
-    the testbed's step is the same bits either way, but Mandow's C cost is not (its sums run in order, numpy's
-    pairwise), and the DE polish carries that last bit to the 5th digit of the league's DE row (README, "The
-    testbed's C step")."""
+    """The C extensions of bench/ and methods/ and what runs: ``{module: state}``, the state "built", "not built" (a
+    ``.c`` without a module this interpreter loads: the Python reference runs), "fails to load" (the code falls back
+    to its Python reference too), "stale" (built, then its ``.c`` changed: the old build runs) or "off" (built, but
+    ``SKIDBENCH_KERNEL=python`` runs the reference).  A module is loaded from its file to test it, never imported by
+    name.  Part of the result's identity: the testbed's step is the same bits either way, but Mandow's C cost is not
+    (its sums run in order, numpy's pairwise), and the DE polish carries that last bit to the 5th digit of the
+    league's DE row (README, "The testbed's C step")."""
     suffixes = sorted(EXTENSION_SUFFIXES, key=len, reverse=True)
     off = os.environ.get("SKIDBENCH_KERNEL", "c") == "python"
     found: dict[str, str] = {}
@@ -55,9 +57,29 @@ def compiled_extensions(root: Path = REPO) -> dict[str, str]:
                 found.setdefault(rel[:-2].replace("/", "."), "not built")
                 continue
             suffix = next((s for s in suffixes if rel.endswith(s)), None)
-            if suffix is not None and "." not in p.name[:-len(suffix)]:
-                found[rel[:-len(suffix)].replace("/", ".")] = "off" if off else "built"
+            if suffix is None or "." in p.name[:-len(suffix)]:
+                continue
+            module = rel[:-len(suffix)].replace("/", ".")
+            source = p.with_name(p.name[:-len(suffix)] + ".c")
+            if off:
+                found[module] = "off"
+            elif not _loads(p, module):
+                found[module] = "fails to load"
+            elif source.is_file() and source.stat().st_mtime > p.stat().st_mtime:
+                found[module] = "stale"
+            else:
+                found[module] = "built"
     return dict(sorted(found.items()))
+
+
+def _loads(path: Path, module: str) -> bool:
+    """Whether the extension module at ``path`` loads in this interpreter (as its import would)."""
+    spec = importlib.util.spec_from_file_location(module, path)
+    try:
+        importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+    except (ImportError, OSError):
+        return False
+    return True
 
 
 def git_commit() -> str:

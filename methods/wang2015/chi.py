@@ -150,7 +150,8 @@ def identification_plan(curvature_ratios: Sequence[float] = tuple(range(8)),
                         speeds: Sequence[float] = (0.1, 0.2, 0.3, 0.4, 0.5)) -> tuple[PlanEntry, ...]:
     """Eqs. (26)-(27): the 8 x 5 = 40 steady-circle runs as tread speeds.  From eq. (13) and
     v = (v_l + v_r)/2: ``v_l = v (1 - 1/lambda)``, ``v_r = v (1 + 1/lambda)``; lambda = 0 is a pure
-    rotation with tread speeds -v, +v."""
+    rotation with tread speeds -v, +v.  Counter-clockwise, as the equations are written; the reproduction turns its
+    grid clockwise, as Wang's experiments (Sec. 3.2, Fig. 9): :func:`methods.wang2015.repro.grid_scenario`."""
     out = []
     for cr in curvature_ratios:
         for v in speeds:

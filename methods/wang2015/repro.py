@@ -105,9 +105,9 @@ def published_values(table_id: str) -> dict[str, float]:
 
 
 def grid_duration(curvature_ratio: float, speed: float, rotation: float, track: float, s: Settings = SETTINGS) -> float:
-    """Run length [s]: ``skip_start`` plus the time to turn ``rotation`` at the commanded yaw rate
-    ``(v_r - v_l) / (B chi)`` with ``v_r = v``, ``v_l = v (lambda - 1)/(lambda + 1)`` and chi = ``chi_guess``,
-    rounded up to 0.1 s."""
+    """Run length [s]: ``skip_start`` plus the time to turn ``rotation`` at the commanded yaw rate's magnitude
+    ``(v_outer - v_inner) / (B chi)`` with ``v_outer = v``, ``v_inner = v (lambda - 1)/(lambda + 1)`` and chi =
+    ``chi_guess`` (the grid turns clockwise: the outer tread is the left one), rounded up to 0.1 s."""
     yaw_rate = 2.0 * speed / ((curvature_ratio + 1.0) * track * s.chi_guess)
     return math.ceil(10.0 * (s.skip_start + rotation / yaw_rate)) / 10.0
 
