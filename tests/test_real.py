@@ -389,12 +389,34 @@ def test_full_husky_benchmark(husky_df: pd.DataFrame, tmp_path: Path) -> None:
     meds = {k: m["stats"]["all"]["trans"]["median"] for k, m in res["models"].items()}
     assert v["ideal_dd_median_trans"] == meds["ideal_dd"]
     best = min(ICR_FAMILY, key=meds.get)
-    assert v["best_icr_model"] == best and v["passed"] == (meds[best] < meds["ideal_dd"])
-    # the Yi rows: present, and the report's comparison with the best ICR-family model follows the numbers
+    # the paired intervals over the held-out command steps, by a second implementation of the step bootstrap
+    win = res["_windows"]
+    steps = np.asarray(win["step"])
+    ids = np.unique(steps)
+    members = {k: np.flatnonzero(steps == s) for k, s in enumerate(ids)}
+
+    def interval(a: str, b: str, err: int) -> tuple[float, float]:
+        ea, eb = (np.asarray(win["errors"][m][err]) for m in (a, b))
+        rng = np.random.default_rng(0)
+        d = []
+        for _ in range(1000):
+            ix = np.concatenate([members[k] for k in rng.integers(0, ids.size, ids.size)])
+            d.append(np.median(ea[ix]) - np.median(eb[ix]))
+        lo, hi = np.percentile(d, [2.5, 97.5])
+        return float(lo), float(hi)
+
+    lo, hi = interval(best, "ideal_dd", 0)
+    assert v["best_icr_model"] == best and v["best_minus_ideal_interval"] == pytest.approx([lo, hi], abs=1e-12)
+    assert v["passed"] == (hi < 0) and lo <= meds[best] - meds["ideal_dd"] <= hi
+    # the Yi rows: present, and the report's comparison with the best ICR-family model follows the intervals
+    words = {"beats": "beats", "worse": "is worse than", "no clear difference": "shows no clear difference from"}
     for yi in ("yi2009_s_gamma", "yi2009_s_gamma_gyro"):
-        d_mm = 1000 * (meds[yi] - meds[best])
-        word = "matches" if abs(d_mm) < 1 else "beats" if d_mm < 0 else "does not beat"
-        assert f"`{yi}` uses" in md and f"it {word}" in md.split(f"`{yi}` uses")[1].split("\n")[0]
+        for err, name in ((0, "trans"), (1, "yaw")):
+            lo, hi = interval(yi, best, err)
+            assert v["yi_vs_best"][yi][name] == pytest.approx([lo, hi], abs=1e-12)
+        lo, hi = v["yi_vs_best"][yi]["trans"]
+        word = words["beats" if hi < 0 else "worse" if lo > 0 else "no clear difference"]
+        assert f"`{yi}` uses" in md and f"in translation it {word} it" in md.split(f"`{yi}` uses")[1].split("\n")[0]
     assert f"{meds[best]:.3f} m" in md and f"{meds['ideal_dd']:.3f} m" in md
     assert ("**Not met**" in md) == (not v["passed"])
     from bench.report.cells import long_cells

@@ -9,6 +9,8 @@ windows by tests.test_drive.drive_cut (one transitory and two steady windows per
 """
 from __future__ import annotations
 
+import dataclasses
+
 import json
 from pathlib import Path
 
@@ -137,6 +139,25 @@ def test_fixes_correct_what_they_name(clean, tmp_path):
     assert found["gyro_sign"].ok and found["imu_offset"].ok and len(lines) >= 2
     assert abs(found["imu_offset"].values["imu_ax"]) < 0.01
 
+
+def test_the_imu_offset_is_measured_on_the_windows_it_is_told(clean, tmp_path):
+    """``measure_on`` (the benchmark passes the calibration half's windows): a held-out window's offset does not
+    shape the correction.  Here only the first half of the steps carries a -1.1 m/s^2 offset."""
+    path = tmp_path / "half.parquet"
+    clean[1].to_parquet(path)
+    w = import_drive_windows(path)
+    steps = np.unique(w.calib_step)
+    first = np.isin(w.calib_step, steps[: steps.size // 2])
+    ax = np.array(w["imu_ax"], float)
+    ax[first] -= 1.1
+    w = dataclasses.replace(w, channels={**w.channels, "imu_ax": ax})
+
+    def correction(mask):
+        lines = apply_fixes(w, ["imu_offset"], measure_on=mask)[1]
+        return {ln.split()[1]: float(ln.split()[2]) for ln in lines if ln.startswith("imu_offset:")}
+
+    assert correction(first)["imu_ax"] == pytest.approx(1.1, abs=0.05)
+    assert correction(~first)["imu_ax"] == pytest.approx(0.0, abs=0.05)
 
 def test_an_unseen_robot_scores_from_a_radius_and_track_toml(clean, tmp_path, capsys):
     path, _ = clean

@@ -4,6 +4,7 @@ written atomically (:mod:`bench.real.io`) and without wall-clock data, so the sa
 bytes.  Every sentence's number is derived from the benchmark's results here, none written by hand."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -12,6 +13,7 @@ import numpy as np
 from bench.real.chi import TESTBED_CHI_SCENARIO, WANG_P3AT, model_chi, wang_p3at_chi
 from bench.real.drive import DriveWindows
 from bench.real.io import _atomic_write_text, _new_figure, _save_figure
+from bench.real.league import N_BOOT, comparison
 from bench.real.windows import MIN_TURN, WindowModel
 from bench.report.cells import CELL_LIMIT, cell
 
@@ -182,14 +184,18 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
         add("")
     add("## Verdict\n")
     ideal, best, bm = v["ideal_dd_median_trans"], v["best_icr_model"], v["best_icr_median_trans"]
+    lo, hi = v.get("best_minus_ideal_interval", (math.nan, math.nan))
+    paired = (f"paired 95 % interval of the difference of medians {lo:+.3f} to {hi:+.3f} m over {N_BOOT} resamples of "
+              f"the held-out command steps; `{best}` is the ICR-family model with the lowest median on this test half, "
+              f"chosen on it")
     if v["passed"]:
         add(f"The best calibrated ICR-family model, `{best}`, has a lower median 2 s translation error on the test "
             f"half than ideal differential drive with the nominal track: **{_fmt(bm)} m vs {_fmt(ideal)} m** "
-            f"({100 * (1 - bm / ideal):.0f} % lower).\n")
+            f"({100 * (1 - bm / ideal):.0f} % lower; {paired}).\n")
     else:
         add(f"**Not met**: the best calibrated ICR-family model, `{best}`, has a median 2 s translation error of "
-            f"{_fmt(bm)} m on the test half, not below ideal differential drive ({_fmt(ideal)} m). See the example "
-            f"windows and the chi figure for why.\n")
+            f"{_fmt(bm)} m on the test half against ideal differential drive's {_fmt(ideal)} m, not lower beyond the "
+            f"interval ({paired}). See the example windows and the chi figure for why.\n")
     yi = _yi_sentences(out)
     if yi:
         add("## Yi 2009 S(gamma) kinematics\n")
@@ -201,7 +207,8 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
         L.extend(notes)
         add("")
     c = out["chi"]
-    add(f"## Measured chi versus curvature ratio (all steady windows turning >= {c['min_turn']} rad)\n")
+    add(f"## Measured chi versus curvature ratio (all steady windows of both halves turning >= {c['min_turn']} rad: "
+        "a description of the data; no model is fitted on it)\n")
     add(f"chi = (S_r - S_l) / (phi B) per window (Wang 2015 eq. (25)/(42); S_i = r * sum(w_i dt), phi = ICP yaw "
         f"change over the same samples). {c['n']} windows: median {_fmt(c['median'])}, interquartile "
         f"{_fmt(c['q25'])}-{_fmt(c['q75'])}. Wang's P3-AT curve (eq. (45), published: a = 0.4728, b = 0.0538) is "
@@ -271,17 +278,19 @@ def _yi_sentences(out: Mapping[str, Any]) -> list[str]:
         m = ms[name]
         t, y = (m["stats"]["all"][e]["median"] for e in ("trans", "yaw"))
         p = m["params"]
-        d_mm = 1000.0 * (t - bt)
-        verdict_t = ("matches (within 1 mm)" if abs(d_mm) < 1.0 else
-                     f"beats (by {-d_mm:.0f} mm)" if d_mm < 0 else f"does not beat ({d_mm:.0f} mm worse than)")
+        iv = v.get("yi_vs_best", {}).get(name, {"trans": (math.nan, math.nan), "yaw": (math.nan, math.nan)})
+        (tlo, thi), (ylo, yhi) = iv["trans"], iv["yaw"]
+        words = {"beats": "beats", "worse": "is worse than", "no clear difference": "shows no clear difference from"}
         lines.append(
             f"- `{name}` uses {what}; S(gamma) fitted on {int(p['n_S_points'])} steady turning calibration windows "
             f"(S(0) = a1/a3 = {_fmt(p['S(0)'])} m, a2/a3 = {_fmt(p['a2'] / p['a3'])}, S reversing with the travel "
             f"direction, x_M = {_fmt(p['x_M'])} m, point scatter {_fmt(p['S_fit_rms'])} m RMS), common traction slip "
             f"lambda_0 = {_fmt(p['lambda_0'])}. Median test "
-            f"error {_fmt(t, 4)} m / {_fmt(y)} rad: it {verdict_t} the best ICR-family model `{best}` "
-            f"({_fmt(bt, 4)} m / {_fmt(by)} rad) in translation and is "
-            f"{'better' if y < by else 'not better'} in yaw.")
+            f"error {_fmt(t, 4)} m / {_fmt(y)} rad against the best ICR-family model `{best}`'s {_fmt(bt, 4)} m / "
+            f"{_fmt(by)} rad: in translation it {words[comparison(tlo, thi)]} it (paired 95 % interval of the "
+            f"difference of medians {1000 * tlo:+.1f} to {1000 * thi:+.1f} mm), in yaw it "
+            f"{words[comparison(ylo, yhi)]} it ({1000 * ylo:+.1f} to {1000 * yhi:+.1f} mrad; {N_BOOT} resamples of "
+            f"the held-out command steps).")
     if lines:
         lines.append(
             "- Missing for Yi's full method (the EKF of Sec. IV, which estimates the slips on line): "
@@ -310,7 +319,7 @@ def _reading(out: Mapping[str, Any]) -> list[str]:
             f"{_fmt(p['chi'] / ((p['alpha_l'] + p['alpha_r']) / 2))}.")
     if "icr_sym_chi" in ms:
         lines.append(f"- `icr_sym_chi`: chi = {_fmt(ms['icr_sym_chi']['params']['chi'])} minimises Mandow's J over the "
-                     f"calibration windows; the median chi measured per steady window with eq. (25) (below) is "
+                     f"calibration windows; the median chi measured per steady window of both halves with eq. (25) (below) is "
                      f"{_fmt(out['chi']['median'])}.")
     if "wang2015_chi_curve" in ms:
         p = ms["wang2015_chi_curve"]["params"]

@@ -225,9 +225,12 @@ def check_windows(w: DriveWindows) -> list[Finding]:
     return [f for f in found if f is not None]
 
 
-def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix") -> tuple[DriveWindows, list[str]]:
+def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
+                measure_on: np.ndarray | None = None) -> tuple[DriveWindows, list[str]]:
     """``w`` with the corrections ``fixes`` (names of :data:`FIXES`) applied in that table's order (the offsets are
-    measured after the gyro flip), and a line per correction."""
+    measured after the gyro flip), and a line per correction.  ``measure_on``: the windows (a mask of ``w``) the
+    offsets are measured on, e.g. the calibration half's, so that no held-out window shapes a correction; default
+    every window."""
     for f in fixes:
         if f not in FIXES:
             raise SpecError("<command line>", where, f, f"expected one of {', '.join(FIXES)}")
@@ -237,7 +240,9 @@ def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix") -> 
         ch["imu_gz"] = -np.asarray(ch["imu_gz"])
         done.append("flip_gyro: imu_gz multiplied by -1")
     out = dataclasses.replace(w, channels=ch)
-    offset = _imu_offset(out) if "imu_offset" in fixes else None  # measured after the flip
+    offset = None
+    if "imu_offset" in fixes:  # measured after the flip
+        offset = _imu_offset(out if measure_on is None else out.subset(np.asarray(measure_on, bool)))
     if offset is not None:
         for c, v in offset.values.items():
             ch[c] = np.asarray(ch[c]) - v

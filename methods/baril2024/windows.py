@@ -107,6 +107,7 @@ class BlrSlipCmdWindows(VelocityWindowModel):
     label: str = "IDD + BLR slip (Baril 2024), commands through the powertrain"
     fit_cost: float = math.nan
     n_fit: int = 0
+    inputs: tuple[str, ...] = ("commands", "first wheel speed")  # what it reads of a window (the real league)
 
     def fit(self, calib: DriveWindows) -> "BlrSlipCmdWindows":
         trans = calib.subset(calib.transitory) if calib.transitory.any() else calib

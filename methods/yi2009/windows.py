@@ -115,6 +115,11 @@ class YiSGamma(VelocityWindowModel):
     n_fit: int = 0
     s_fit_rms: float = math.nan
 
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """What the model reads of a window besides its initial reference pose (the real league shows it)."""
+        return ("wheel speeds", "gyro z") if self.yaw_rate == "gyro" else ("wheel speeds",)
+
     def __post_init__(self) -> None:
         if self.yaw_rate not in ("wheels", "gyro"):
             raise ValueError(f"YiSGamma.yaw_rate = {self.yaw_rate!r}: 'wheels' or 'gyro'")
