@@ -89,10 +89,11 @@ class PidSpec:
     }
 
 
-# [m] a wheeled robot's wheel radius and track: Platform's ranges, and those of the kinematic platforms of the real data
-# (bench.real.platform, bench.real.drive.resolve_platform)
+# [m] a wheeled robot's wheel radius and track: Platform's ranges (its _checks, which the kinematic platforms of the
+# real data use too: bench.real.platform, bench.real.drive.resolve_platform)
 WHEEL_RADIUS_RANGE = (0.01, 2.0)
 TRACK_RANGE = (0.05, 10.0)
+MAX_SPEED = 20.0  # [m/s] the fastest a command, a segment or an initial speed may ask of a wheeled robot
 
 
 @dataclass(frozen=True)
@@ -353,9 +354,9 @@ class CommandSpec:
         "units": (lambda x: x in ("rad/s", "rpm", "m/s"), "one of rad/s, rpm, m/s"),
         "accel": (nonneg, ">= 0"),
         "step": (lambda x: 1e-3 <= x <= 3600.0, "in [1e-3, 3600] s"),
-        "v_max": (lambda x: 0 < x <= 20.0, "in (0, 20] m/s"),
+        "v_max": (lambda x: 0 < x <= MAX_SPEED, f"in (0, {MAX_SPEED:g}] m/s"),
         "w_max": (lambda x: 0 <= x <= 20.0, "in [0, 20] rad/s"),
-        "v": (lambda x: abs(x) <= 20.0, "in [-20, 20] m/s"),
+        "v": (lambda x: abs(x) <= MAX_SPEED, f"in [-{MAX_SPEED:g}, {MAX_SPEED:g}] m/s"),
     }
 
     def _check_whole(self) -> tuple[str, object, str] | None:
@@ -364,8 +365,8 @@ class CommandSpec:
         for i, s in enumerate(self.segments):
             if self.kind == "wheel_speeds" and not abs(s.b) <= MAX_SEGMENT_VALUE:
                 return f"segments[{i}].b", s.b, f"a finite wheel speed, |b| <= {MAX_SEGMENT_VALUE:g}"
-            if self.kind in ("v_radius", "v_curvature_ratio") and not abs(s.a) <= 20.0:
-                return f"segments[{i}].a", s.a, "a speed in [-20, 20] m/s"
+            if self.kind in ("v_radius", "v_curvature_ratio") and not abs(s.a) <= MAX_SPEED:
+                return f"segments[{i}].a", s.a, f"a speed in [-{MAX_SPEED:g}, {MAX_SPEED:g}] m/s"
             if self.kind == "v_radius" and not abs(s.b) >= 1e-3:
                 return f"segments[{i}].b", s.b, "a radius with |b| >= 1 mm (inf: straight)"
             if self.kind == "v_curvature_ratio" and not s.b >= 0.0:
@@ -394,7 +395,7 @@ class Scenario:
         "duration": (lambda x: 0 < x <= 4 * 3600, "in (0, 14400] s"),
         "dt": (lambda x: 1e-4 <= x <= 0.02, "in [1e-4, 0.02] s"),
         "log_rate_hz": (sensor_rate, SENSOR_RATE_RANGE),
-        "initial_speed": (lambda x: abs(x) <= 20.0, "in [-20, 20] m/s"),
+        "initial_speed": (lambda x: abs(x) <= MAX_SPEED, f"in [-{MAX_SPEED:g}, {MAX_SPEED:g}] m/s"),
         "initial_yaw_rate": (lambda x: math.isfinite(x) and abs(x) <= 10.0, "in [-10, 10] rad/s"),
         "initial_skid_ratio": (lambda x: 0.0 <= x <= 20.0, "in [0, 20]"),
     }

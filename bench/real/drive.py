@@ -77,7 +77,7 @@ import numpy as np
 import pandas as pd
 
 from bench.run import Run, RunError, from_arrays, wrap_angle
-from bench.spec import TRACK_RANGE, WHEEL_RADIUS_RANGE, Platform, SpecError, load_platform, to_dict
+from bench.spec import Platform, SpecError, load_platform, to_dict
 
 DRIVE_DT = 0.05  # [s] DRIVE resamples every log at 20 Hz (dataset_parser.py: ``self.rate = 0.05``)
 MAX_WHEEL_SPEED = 300.0  # [rad/s] no wheeled robot's wheel turns faster (a 5 cm wheel at 15 m/s): a unit error
@@ -416,9 +416,10 @@ def resolve_platform(platform: str | Path | Platform | Mapping[str, Any] | None,
     """The platform as a dict for ``run.meta["platform"]``: a name/path (``load_platform``), a
     Platform or a mapping, with ``wheel_radius``/``track`` overriding it; with no platform both
     overrides are required (a minimal dict is returned)."""
-    for name, v, (lo, hi) in (("wheel_radius", wheel_radius, WHEEL_RADIUS_RANGE), ("track", track, TRACK_RANGE)):
-        if v is not None and not (np.isfinite(v) and lo <= v <= hi):  # a wheeled robot's, as bench.spec.Platform's
-            raise SpecError("<command line>", name, v, f"expected a length in [{lo:g}, {hi:g}] m")
+    for name, v in (("wheel_radius", wheel_radius), ("track", track)):
+        ok, expected = Platform._checks[name]  # a wheeled robot's range, the testbed Platform's own check
+        if v is not None and not (np.isfinite(v) and ok(v)):
+            raise SpecError("<command line>", name, v, f"expected a length {expected}")
     if platform is None:
         if wheel_radius is None or track is None:
             raise SpecError("<command line>", "platform", None, "give a platform, or both wheel_radius and track")

@@ -18,13 +18,12 @@ from pathlib import Path
 from typing import Any
 
 from bench.schema import read_toml
-from bench.spec import TRACK_RANGE, WHEEL_RADIUS_RANGE, SpecError, load_platform, to_dict
+from bench.spec import Platform, SpecError, load_platform, to_dict
 
 __all__ = ["kinematic_platform", "REQUIRED"]
 
 REQUIRED = ("wheel_radius", "track")
 _LENGTH_UNITS = {"": 1.0, "_m": 1.0, "_cm": 0.01, "_mm": 0.001}
-_RANGE = {"wheel_radius": WHEEL_RADIUS_RANGE, "track": TRACK_RANGE}  # [m]: a wheeled robot's, as bench.spec.Platform's
 
 
 def _length(doc: dict[str, Any], key: str, path: Path) -> float:
@@ -38,9 +37,9 @@ def _length(doc: dict[str, Any], key: str, path: Path) -> float:
     v = doc[k]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
         raise SpecError(path, k, v, "expected a finite length > 0")
-    lo, hi = _RANGE[key]
-    if not lo <= float(v) * factor <= hi:
-        raise SpecError(path, k, v, f"expected a length in [{lo:g}, {hi:g}] m (given in {k[len(key) + 1:] or 'm'})")
+    ok, expected = Platform._checks[key]  # a wheeled robot's range, the testbed Platform's own check
+    if not ok(float(v) * factor):
+        raise SpecError(path, k, v, f"expected a length {expected} (given in {k[len(key) + 1:] or 'm'})")
     return float(v) * factor
 
 
