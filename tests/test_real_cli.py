@@ -78,6 +78,9 @@ def defect(df: pd.DataFrame, kind: str) -> pd.DataFrame:
         for b in ("left_wheel_vel", "right_wheel_vel"):
             a = df[_cols(df, b)].to_numpy()
             df[_cols(df, b)] = a[:, (np.arange(N) // 5) * 5]
+    elif kind == "wheel_scale":  # the whole log in rpm: wheel speeds and commands (rad/s * 60 / 2 pi)
+        for b in ("left_wheel_vel", "right_wheel_vel", "cmd_left", "cmd_right"):
+            df[_cols(df, b)] *= 60.0 / (2.0 * np.pi)
     elif kind == "stale_reference":  # the reference held over the last 10 samples of 80 % of the windows
         rows = np.random.default_rng(0).random(len(df)) < 0.8
         for b in ("icp_x", "icp_y", "icp_yaw"):
@@ -95,22 +98,25 @@ def clean(tmp_path_factory) -> tuple[Path, pd.DataFrame]:
     return path, df
 
 
-def _findings(df: pd.DataFrame, tmp_path: Path) -> dict:
+def _findings(df: pd.DataFrame, tmp_path: Path, wheel_radius: float | None = R) -> dict:
     path = tmp_path / "t.parquet"
     df.to_parquet(path)
-    return {f.check: f for f in check_windows(import_drive_windows(path))}
+    return {f.check: f for f in check_windows(import_drive_windows(path), wheel_radius)}
 
 
 def test_clean_table_raises_no_warning(clean, tmp_path):
     found = _findings(clean[1], tmp_path)
-    assert set(found) == {"gyro_sign", "imu_offset", "update_rate", "stale_reference", "command_lag"}
+    assert set(found) == {"gyro_sign", "imu_offset", "update_rate", "stale_reference", "command_lag", "wheel_scale"}
     assert all(f.ok for f in found.values()), [f.line() for f in found.values() if not f.ok]
     assert found["gyro_sign"].values["slope"] == pytest.approx(1.0, abs=0.02)
+    # the synthetic body moves at the tread speed R (w_l + w_r) / 2 exactly (no longitudinal slip)
+    assert found["wheel_scale"].values["slope"] == pytest.approx(1.0, abs=0.03)
+    assert "wheel_scale" not in _findings(clean[1], tmp_path, wheel_radius=None)  # no radius, no check
     # T50 of a first-order lag is tau ln 2 = 0.10 s, counted in whole 0.05 s samples from the command's crossing
     assert 0.05 <= found["command_lag"].values["t50_s"] <= 0.2
 
 
-@pytest.mark.parametrize("kind", ["gyro_sign", "imu_offset", "update_rate", "stale_reference"])
+@pytest.mark.parametrize("kind", ["gyro_sign", "imu_offset", "update_rate", "stale_reference", "wheel_scale"])
 def test_each_defect_fires_its_check_alone(clean, tmp_path, kind):
     found = _findings(defect(clean[1], kind), tmp_path)
     assert not found[kind].ok, found[kind].line()
@@ -120,6 +126,11 @@ def test_each_defect_fires_its_check_alone(clean, tmp_path, kind):
 def test_check_values_measure_the_defect(clean, tmp_path):
     assert _findings(defect(clean[1], "gyro_sign"), tmp_path)["gyro_sign"].values["slope"] == pytest.approx(-1.0, abs=0.02)
     assert _findings(defect(clean[1], "imu_offset"), tmp_path)["imu_offset"].values["imu_ax"] == pytest.approx(-1.1, abs=0.05)
+    rpm = _findings(defect(clean[1], "wheel_scale"), tmp_path)["wheel_scale"]
+    assert rpm.values["slope"] == pytest.approx(2 * np.pi / 60, rel=0.03) and "rpm given as rad/s" in rpm.evidence
+    # a wheel radius given 4 times too small: slope 4, outside 1/3..3, and no unit is named
+    small = _findings(clean[1], tmp_path, wheel_radius=R / 4)["wheel_scale"]
+    assert not small.ok and small.values["slope"] == pytest.approx(4.0, rel=0.03) and "a unit?" in small.evidence
     rate = _findings(defect(clean[1], "update_rate"), tmp_path)["update_rate"].values
     # 4 Hz holds of 5 samples: 7 changes over the 39 sample pairs of a 40-sample window, at 20 Hz
     assert rate["enc_wl"] == pytest.approx(20 * 7 / 39, rel=1e-9) and rate["imu_gz"] > 19

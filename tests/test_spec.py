@@ -192,6 +192,8 @@ def test_every_shipped_parameter_names_its_source(path):
     for key in written - {"dt_max"}:  # dt_max: a requirement on the scenario's step, not a terrain field
         src = spec.sources[_field_name(key)]  # slope_deg -> slope, as the loader converts it
         assert src.kind in SOURCE_KINDS and src.ref, (key, src)
+    for key in set(spec.sources) - {_field_name(k) for k in written}:  # a default the file relies on says what it is
+        assert not spec.sources[key].ref.startswith("default <") and " of bench.spec." not in spec.sources[key].ref, key
     claims = _claim_ids()
     for key, src in spec.sources.items():
         assert (src.kind == "chosen") == bool(src.claims), (key, src)

@@ -26,7 +26,7 @@ def _drive_args(p: argparse.ArgumentParser) -> None:
                    help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
 
 
-def _print_sanity(where: Path, sanity: dict) -> None:
+def print_sanity(where: Path, sanity: dict) -> None:
     """The data sanity warnings (bench.real.sanity) and the corrections applied, one line each."""
     if sanity.get("skipped"):
         print(f"{where}: sanity checks skipped: {sanity['skipped']}")
@@ -42,7 +42,7 @@ def _import_drive(a: argparse.Namespace) -> int:
     from bench.real.drive import import_drive
 
     runs = import_drive(a.table, a.platform, a.wheel_radius, a.track, fixes=a.fix)
-    _print_sanity(a.table, runs[0].meta["sanity"] if runs else {"findings": [], "fixes": []})
+    print_sanity(a.table, runs[0].meta["sanity"] if runs else {"findings": [], "fixes": []})
     for r in runs:
         r.to_parquet(a.output / f"step{r.meta['calib_step']:03d}.parquet")
     print(f"wrote {len(runs)} runs to {a.output}")
@@ -89,7 +89,7 @@ def _import_csv(a: argparse.Namespace) -> int:
     from bench.real.run_sanity import check_run
 
     run = check_run(import_csv(a.log, a.mapping), a.fix)  # findings in the run's metadata (meta["sanity"])
-    _print_sanity(a.log, run.meta["sanity"])
+    print_sanity(a.log, run.meta["sanity"])
     run.to_parquet(a.output)
     print(f"wrote {a.output} ({len(run.data)} rows)")
     return 0
@@ -100,7 +100,7 @@ def _import_bag(a: argparse.Namespace) -> int:
     from bench.real.run_sanity import check_run
 
     run = check_run(import_bag(a.log, a.mapping), a.fix)  # findings in the run's metadata (meta["sanity"])
-    _print_sanity(a.log, run.meta["sanity"])
+    print_sanity(a.log, run.meta["sanity"])
     run.to_parquet(a.output)
     print(f"wrote {a.output} ({len(run.data)} rows)")
     return 0

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Iterator
 
 from bench.cli import command, count, output_files
+from bench.cli.formats import print_sanity
 from bench.schema import SpecError
 
 
@@ -94,12 +95,7 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
         label = f"{data.stem}-{plat['name']}"
         res = run_real_benchmark(data, stage, a.seed, platform=plat, models=methods, figures=not a.no_figures,
                                  label=label, fixes=a.fix)
-        for f in res["sanity"]["findings"]:
-            if not f["ok"]:
-                fix = f" (--fix {f['fix']} corrects it)" if f["fix"] else ""
-                print(f"warning: {data}: {f['check']}: {f['evidence']}{fix}")
-        for line in res["sanity"]["fixes"]:
-            print(f"{data}: corrected: {line}")
+        print_sanity(data, res["sanity"])
         for name, why in res["skipped_models"].items():
             print(f"{data}: {name} not scored: {why}")
         v = res["verdict"]

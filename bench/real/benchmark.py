@@ -178,7 +178,7 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
         allw = import_drive_windows(data_path)
     ok = valid_windows(allw)
     w = allw.subset(ok)
-    findings = check_windows(w)
+    findings = check_windows(w, r)
     fixed_w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(fixed_w, seed)
     if "imu_offset" in fixes:  # the offsets again, measured on the calibration half only (the same windows stay)

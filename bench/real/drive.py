@@ -514,7 +514,7 @@ def import_drive(path: str | Path, platform: str | Path | Platform | Mapping[str
 
     plat = resolve_platform(platform, wheel_radius, track)
     w = import_drive_windows(path)
-    findings = check_windows(w.subset(valid_windows(w)))
+    findings = check_windows(w.subset(valid_windows(w)), float(plat["wheel_radius"]))
     w, fixed = apply_fixes(w, fixes)
     sanity = {"findings": [dataclasses.asdict(f) for f in findings], "fixes": fixed}
     return [Run(r.data, {**r.meta, "sanity": sanity}) for r in windows_to_runs(w, plat)]

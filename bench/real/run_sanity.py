@@ -30,6 +30,12 @@ __all__ = ["check_run", "RUN_FIXES"]
 RUN_FIXES = ("flip_gyro", "imu_offset")  # the corrections that act on samples (drop_stale selects windows)
 
 
+def _wheel_radius(run: Run) -> float | None:
+    """The platform's wheel radius [m] from the run's metadata (the ``wheel_scale`` check), None when not given."""
+    r = (run.meta.get("platform") or {}).get("wheel_radius")
+    return float(r) if isinstance(r, (int, float)) and not isinstance(r, bool) and r > 0 else None
+
+
 def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
     """``run`` with the sanity findings in ``meta["sanity"]`` and the corrections ``fixes`` applied (module doc)."""
     for f in fixes:
@@ -42,7 +48,8 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
         w = windows_from_run(run)
     except RunError as e:
         return Run(run.data, {**run.meta, "sanity": {"findings": [], "fixes": [], "skipped": str(e)}})
-    sanity: dict[str, Any] = {"findings": [dataclasses.asdict(f) for f in check_windows(w)], "fixes": []}
+    r = _wheel_radius(run)
+    sanity: dict[str, Any] = {"findings": [dataclasses.asdict(f) for f in check_windows(w, r)], "fixes": []}
     if not fixes:
         return Run(run.data, {**run.meta, "sanity": sanity})
     data, lines = run.data.copy(), []
@@ -57,5 +64,5 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
             data[col] = data[col] - v
             lines.append(f"imu_offset: {col} {-v:+.4g}")
     sanity["fixes"] = lines
-    sanity["after"] = [dataclasses.asdict(f) for f in check_windows(windows_from_run(Run(data, run.meta)))]
+    sanity["after"] = [dataclasses.asdict(f) for f in check_windows(windows_from_run(Run(data, run.meta)), r)]
     return Run(data, {**run.meta, "sanity": sanity})

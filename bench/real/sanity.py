@@ -22,6 +22,10 @@ check                  evidence                                                 
 ``command_lag``        median time from a command step's half-way crossing to the      T10 > 1 s or < -0.1 s
                        wheel speed's crossing of 10 % (T10) and 50 % (T50) of the step, (a clock offset between
                        each transitory window joined to the one before it              the streams?); no fix
+``wheel_scale``        slope (least squares through the origin) of the reference's     slope outside 1/3..3
+                       path speed (ICP path length over the window, signed as the      (0.105: rpm as rad/s;
+                       treads) against the tread speed r (w_l + w_r) / 2, when the     0.017: deg/s; or the
+                       wheel radius r is known                                          radius); no fix
 =====================  ================================================================  =====================
 
 Thresholds are physical bounds, not fitted to the Husky table: a 0.3 m/s^2 accelerometer offset is 1.7 deg of
@@ -29,7 +33,10 @@ tilt; a gyro following the heading with a slope under 0.5 misses half the rotati
 table's rate repeats more samples than it updates (the Husky's wheel speeds and ICP run at half its 20 Hz: reported,
 not flagged); the Husky's powertrain answers a step with T10 0.43 s and T50 0.75 s (measured: a slow response is
 the robot's, reported, not a defect), while a T10 beyond 1 s (half a DRIVE window) or a wheel speed ahead of its
-command are what a clock offset between the streams gives.
+command are what a clock offset between the streams gives.  A skid-steered body moves slower than its treads in a
+turn and never 3 times faster or slower over a whole log (Husky: slope 0.97); wheel speeds logged in rpm read 9.5
+times too fast (slope 0.105), in deg/s 57 times.  A rpm log at a Husky's speeds (under 70 rpm) passes the table
+reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.
 """
 from __future__ import annotations
 
@@ -53,6 +60,7 @@ MAX_STALE_SHARE = 0.10
 MAX_LAG = 1.0  # [s] T10 beyond half a DRIVE window: the transitory window cannot hold the response
 MAX_LEAD = 0.1  # [s] wheel speeds ahead of their command: a clock offset the other way
 MIN_STEP = 1.0  # [rad/s] command steps smaller than this are not timed
+WHEEL_SCALE = (1.0 / 3.0, 3.0)  # reference path speed / tread speed: outside it, a unit or radius error
 FIXES = ("flip_gyro", "imu_offset", "drop_stale")
 
 
@@ -218,10 +226,37 @@ def _command_lag(w: DriveWindows) -> Finding | None:
     return Finding("command_lag", True, text, values)
 
 
-def check_windows(w: DriveWindows) -> list[Finding]:
-    """Every check that the table's channels allow (see the module docstring)."""
+def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
+    """The reference's path speed against the tread speed (module docstring): a unit or radius check."""
+    if wheel_radius is None or not all(w.has(c) for c in ("enc_wl", "enc_wr", "ref_x", "ref_y")) or w.n_samples < 2:
+        return None
+    u = wheel_radius * np.nanmean(w["enc_wl"] + w["enc_wr"], axis=1) / 2.0
+    path = np.nansum(np.hypot(np.diff(w["ref_x"], axis=1), np.diff(w["ref_y"], axis=1)), axis=1)
+    v = np.sign(u) * path / (w.dt * (w.n_samples - 1))
+    ok = np.isfinite(u) & np.isfinite(v)
+    if ok.sum() < 3 or not np.any(u[ok]):
+        return None
+    u, v = u[ok], v[ok]
+    slope = float(u @ v / (u @ u))
+    values = {"slope": slope, "n": float(u.size), "wheel_radius": float(wheel_radius)}
+    text = (f"reference path speed against the tread speed r (w_l + w_r) / 2 with r = {wheel_radius:g} m: slope "
+            f"{slope:.3f} over {u.size} windows")
+    lo, hi = WHEEL_SCALE
+    if not lo <= slope <= hi:
+        guess = {"rpm given as rad/s": 2 * math.pi / 60, "deg/s given as rad/s": math.pi / 180,
+                 "rev/s given as rad/s": 2 * math.pi}
+        name, f = min(guess.items(), key=lambda kv: abs(math.log(max(slope, 1e-12) / kv[1])))
+        hint = f"{name} (slope {f:.3g})?" if abs(math.log(max(slope, 1e-12) / f)) < 0.3 else "a unit?"
+        return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values)
+    return Finding("wheel_scale", True, text, values)
+
+
+def check_windows(w: DriveWindows, wheel_radius: float | None = None) -> list[Finding]:
+    """Every check that the table's channels allow (see the module docstring); ``wheel_radius`` [m] adds the
+    ``wheel_scale`` check."""
     rates = _update_rate(w)  # the stale-pose check reads the reference's rate from it
-    found = [_gyro_sign(w), _imu_offset(w), rates, _stale_reference(w, rates), _command_lag(w)]
+    found = [_gyro_sign(w), _imu_offset(w), rates, _stale_reference(w, rates), _command_lag(w),
+             _wheel_scale(w, wheel_radius)]
     return [f for f in found if f is not None]
 
 

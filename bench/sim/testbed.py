@@ -72,6 +72,8 @@ def _import_pybullet():
 
 
 p = _import_pybullet()
+# contact and settling constants of every platform: testbed choices (no paper gives a contact stiffness), set when the
+# testbed was built (88d1e1e), before any claim was scored, and unchanged since
 CONTACT_STIFFNESS_PER_KG = 3300.0  # N/m per kg of vehicle: 1e5 for the P3-AT (DESIGN.md)
 CONTACT_DAMPING_PER_KG = 65.0  # N s/m per kg: 2e3 for the P3-AT
 M_EFF_FRACTION = 0.13  # effective mass of one contact for the force-slope cap (4 kg of 30.6 kg)
