@@ -10,8 +10,8 @@ windows by tests.test_drive.drive_cut (one transitory and two steady windows per
 from __future__ import annotations
 
 import dataclasses
-
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +21,7 @@ import pytest
 from bench.cli import main
 from bench.real.drive import DRIVE_DT, import_drive_windows
 from bench.real.sanity import apply_fixes, check_windows
+from bench.spec import SCENARIO_DIR
 from tests.test_drive import N, drive_cut
 
 R, B, CHI, TAU = 0.30, 1.10, 1.6, 0.15
@@ -81,6 +82,8 @@ def defect(df: pd.DataFrame, kind: str) -> pd.DataFrame:
     elif kind == "wheel_scale":  # the whole log in rpm: wheel speeds and commands (rad/s * 60 / 2 pi)
         for b in ("left_wheel_vel", "right_wheel_vel", "cmd_left", "cmd_right"):
             df[_cols(df, b)] *= 60.0 / (2.0 * np.pi)
+    elif kind == "gyro_deg":  # the gyro in deg/s
+        df[_cols(df, "imu_yaw")] *= 180.0 / np.pi
     elif kind == "stale_reference":  # the reference held over the last 10 samples of 80 % of the windows
         rows = np.random.default_rng(0).random(len(df)) < 0.8
         for b in ("icp_x", "icp_y", "icp_yaw"):
@@ -131,6 +134,9 @@ def test_check_values_measure_the_defect(clean, tmp_path):
     # a wheel radius given 4 times too small: slope 4, outside 1/3..3, and no unit is named
     small = _findings(clean[1], tmp_path, wheel_radius=R / 4)["wheel_scale"]
     assert not small.ok and small.values["slope"] == pytest.approx(4.0, rel=0.03) and "a unit?" in small.evidence
+    deg = _findings(defect(clean[1], "gyro_deg"), tmp_path)["gyro_sign"]
+    assert not deg.ok and deg.values["slope"] == pytest.approx(180 / np.pi, rel=0.03)
+    assert deg.unit == "deg/s given as rad/s" and rpm.unit == "rpm given as rad/s" and small.unit is None
     rate = _findings(defect(clean[1], "update_rate"), tmp_path)["update_rate"].values
     # 4 Hz holds of 5 samples: 7 changes over the 39 sample pairs of a 40-sample window, at 20 Hz
     assert rate["enc_wl"] == pytest.approx(20 * 7 / 39, rel=1e-9) and rate["imu_gz"] > 19
@@ -198,6 +204,29 @@ def test_a_platform_toml_missing_what_the_models_need_is_one_line(clean, tmp_pat
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "bad.toml" in err and field in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("kind, column", [("wheel_scale", "left_wheel_vel"), ("gyro_deg", "imu_yaw")])
+@pytest.mark.parametrize("command", ["real", "real-gap", "import-drive"])
+def test_a_log_in_rpm_or_deg_per_s_is_refused_in_one_line(clean, tmp_path, capsys, kind, column, command):
+    """A unit mistake the numbers name (slope 0.105: rpm; 57.3: deg/s) is bad input: exit 2 before anything is
+    computed or written, one line naming the file, the column and the unit, never a scored report."""
+    path = tmp_path / "robot_rpm.parquet"
+    defect(clean[1], kind).to_parquet(path)
+    toml = tmp_path / "robot.toml"
+    toml.write_text(f"wheel_radius = {R}\ntrack = {B}\n")
+    full = tmp_path / "husky_r30.toml"  # real-gap simulates: a full spec, the Husky's with the log's wheel radius
+    husky = (SCENARIO_DIR / "platforms" / "husky.toml").read_text()
+    full.write_text(re.sub(r"(?m)^wheel_radius = [0-9.]+", f"wheel_radius = {R}", husky, count=1))
+    out = tmp_path / "o"
+    argv = {"real": ["real", str(path), "--platform", str(toml), "--out", str(out)],
+            "real-gap": ["real-gap", str(path), "--platform", str(full), "--out", str(out)],
+            "import-drive": ["import-drive", str(path), "--wheel-radius", str(R), "--track", str(B), "-o", str(out)]}
+    assert main(argv[command]) == 2
+    err = capsys.readouterr().err.strip()
+    unit = "rpm" if kind == "wheel_scale" else "deg/s"
+    assert err.count("\n") == 0 and "robot_rpm.parquet" in err and column in err and f"{unit} given as rad/s" in err
+    assert not out.exists() or not any(out.iterdir())
 
 
 def test_real_needs_an_output_folder_and_a_known_fix(clean, tmp_path, capsys):

@@ -206,6 +206,7 @@ def _real_gap(a: argparse.Namespace) -> int:
         r = run_real_gap(a.data, stage, a.seed, platform=a.platform, terrain=a.terrain, config=config,
                          workers=a.workers, label=label)
         doc_json = Path(r["files"][-2]).read_text()
+    print_sanity(a.data, r["sanity"])
     ho = r["doc"]["held_out"]["cost"]
     print(f"{r['doc']['workflow']['verdict']}; held-out cost {ho['before_mean']:.4g} -> {ho['after_mean']:.4g} "
           f"-> {a.out / (label + '_gap.md')}")

@@ -63,13 +63,12 @@ import numpy as np
 from bench import registry
 from bench.kinematics import icr_inverse
 from bench.real.chi import chi_by_bin, testbed_chi
-from bench.real.drive import DriveWindows, import_drive_windows, resolve_platform
+from bench.real.drive import DriveWindows, resolve_platform
 from bench.real.report import write_report
 from bench.real.league import paired_median_difference, step_draws
-from bench.real.sanity import apply_fixes, check_windows
-from bench.real.run_windows import is_run_file, windows_from_run
-from bench.run import Run, RunError
-from bench.real.windows import MIN_TURN, WindowModel, end_errors, tread_speeds, valid_windows, window_chi
+from bench.real.sanity import apply_fixes, scored_windows
+from bench.run import RunError
+from bench.real.windows import MIN_TURN, WindowModel, end_errors, tread_speeds, window_chi
 
 ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
 #: the plugins whose window models the benchmark scores by default, in the order of their rows
@@ -172,13 +171,8 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     name = str(plat.get("name") or data_path.stem)
     if name == "unspecified":
         name = data_path.stem
-    if is_run_file(data_path):  # a continuous run (import-bag / import-csv): cut into DRIVE windows
-        allw = windows_from_run(Run.from_parquet(data_path), where=str(data_path))
-    else:
-        allw = import_drive_windows(data_path)
-    ok = valid_windows(allw)
-    w = allw.subset(ok)
-    findings = check_windows(w, r)
+    allw, w, findings = scored_windows(data_path, r)
+    n_excluded = allw.n_windows - w.n_windows  # windows without finite wheel speeds or reference ends
     fixed_w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(fixed_w, seed)
     if "imu_offset" in fixes:  # the offsets again, measured on the calibration half only (the same windows stay)
@@ -248,7 +242,7 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     out = {
         "platform": name, "wheel_radius": r, "track": B, "seed": int(seed),
         "data_file": data_path.name, "data_sha256": hashlib.sha256(data_path.read_bytes()).hexdigest(),
-        "n_windows": allw.n_windows, "n_excluded": int((~ok).sum()),
+        "n_windows": allw.n_windows, "n_excluded": n_excluded,
         "calib_steps": calib_steps.tolist(), "test_steps": test_steps.tolist(),
         "n_calib_windows": calib.n_windows, "n_test_windows": test.n_windows,
         "n_test_steady": int(test.steady.sum()), "n_test_transitory": int(test.transitory.sum()),

@@ -509,12 +509,13 @@ def import_drive(path: str | Path, platform: str | Path | Platform | Mapping[str
     (:mod:`bench.real.sanity`, on the windows with finite wheel speeds and reference) go to every Run's
     ``meta["sanity"]`` (``findings``, and the corrections ``fixes`` applied before the cut into Runs).
     """
-    from bench.real.sanity import apply_fixes, check_windows
+    from bench.real.sanity import apply_fixes, check_windows, refuse_unit_slips
     from bench.real.windows import valid_windows
 
     plat = resolve_platform(platform, wheel_radius, track)
     w = import_drive_windows(path)
     findings = check_windows(w.subset(valid_windows(w)), float(plat["wheel_radius"]))
+    refuse_unit_slips(findings, str(path))
     w, fixed = apply_fixes(w, fixes)
     sanity = {"findings": [dataclasses.asdict(f) for f in findings], "fixes": fixed}
     return [Run(r.data, {**r.meta, "sanity": sanity}) for r in windows_to_runs(w, plat)]

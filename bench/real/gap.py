@@ -180,7 +180,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from bench.real.drive import DriveWindows, import_drive_windows, windows_to_runs
+from bench.real.drive import DriveWindows, windows_to_runs
 from bench.gap import Thresholds, find_gap
 from bench.gap.catalogue import CATALOGUE, Effect
 from bench.gap.model import apply_overrides
@@ -192,7 +192,6 @@ from bench.real.gap_report import _figure, _markdown
 from bench.real.held_out import score_held_out, step_residuals, wheel_series
 from bench.real.stall import STALL_RATIO, motion_ratio, run_series, stall_summary
 from bench.real.io import _atomic_write_text
-from bench.real.windows import valid_windows
 from bench.report.io import dumps_json
 from bench.run import Run
 from bench.spec import load_scenario, replace, to_dict
@@ -420,18 +419,14 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     are ``<label>_gap.md|json|png`` (default label: the platform's name).
     Returns the JSON document (``doc``), the :class:`GapResult` (``result``) and the held-out Runs'
     step ids; ``runtime_s`` (wall time) is returned, never written."""
-    from bench.real.run_windows import is_run_file, windows_from_run
+    from bench.real.sanity import scored_windows
     from bench.spec import to_dict
 
     t0 = time.perf_counter()
     data_path = Path(data_path)
     scn = nominal_scenario(platform, terrain, scenario)
     plat = to_dict(scn.platform)
-    if is_run_file(data_path):
-        allw = windows_from_run(Run.from_parquet(data_path), where=str(data_path))
-    else:
-        allw = import_drive_windows(data_path)
-    w = allw.subset(valid_windows(allw))
+    allw, w, findings = scored_windows(data_path, float(plat["wheel_radius"]))  # a unit mistake is refused
     calib_steps, test_steps = split_steps(w, seed)
     order = [int(s) for s in step_order(w)]
     test_set = set(int(s) for s in test_steps)
@@ -482,7 +477,8 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         "validation": _clean(validation),
         "held_out": _clean(held_out),
     }
-    out = {"doc": doc, "result": res, "held_out_steps": held}
+    out = {"doc": doc, "result": res, "held_out_steps": held,
+           "sanity": {"findings": [dataclasses.asdict(f) for f in findings], "fixes": []}}
     if out_dir is not None:
         out_dir = Path(out_dir)
         files = []

@@ -21,7 +21,7 @@ import dataclasses
 from typing import Any, Sequence
 
 from bench.real.run_windows import windows_from_run
-from bench.real.sanity import FIXES, check_windows
+from bench.real.sanity import FIXES, check_windows, refuse_unit_slips
 from bench.run import Run, RunError
 from bench.spec import SpecError
 
@@ -49,7 +49,9 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
     except RunError as e:
         return Run(run.data, {**run.meta, "sanity": {"findings": [], "fixes": [], "skipped": str(e)}})
     r = _wheel_radius(run)
-    sanity: dict[str, Any] = {"findings": [dataclasses.asdict(f) for f in check_windows(w, r)], "fixes": []}
+    found = check_windows(w, r)
+    refuse_unit_slips(found, run.where)
+    sanity: dict[str, Any] = {"findings": [dataclasses.asdict(f) for f in found], "fixes": []}
     if not fixes:
         return Run(run.data, {**run.meta, "sanity": sanity})
     data, lines = run.data.copy(), []

@@ -43,14 +43,16 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
 from bench.real.drive import DriveWindows
+from bench.run import RunError
 from bench.spec import SpecError
 
-__all__ = ["Finding", "check_windows", "apply_fixes", "FIXES"]
+__all__ = ["Finding", "check_windows", "apply_fixes", "FIXES", "refuse_unit_slips", "scored_windows"]
 
 GYRO_MIN_SLOPE = 0.5
 IMU_MAX_OFFSET = 0.3  # [m/s^2]
@@ -71,10 +73,23 @@ class Finding:
     evidence: str
     values: dict[str, float]
     fix: str | None = None  # the --fix that corrects it (None: no correction exists)
+    unit: str | None = None  # the unit mistake its numbers match ("rpm given as rad/s"): bad input, not a warning
 
     def line(self) -> str:
         fix = f" (--fix {self.fix} corrects it)" if self.fix and not self.ok else ""
         return f"{'ok' if self.ok else 'WARNING'} {self.check}: {self.evidence}{fix}"
+
+
+UNIT_SLIPS = {"rpm given as rad/s": 2 * math.pi / 60, "deg/s given as rad/s": math.pi / 180,
+              "rev/s given as rad/s": 2 * math.pi}  # reference / channel slope each gives (gyro: its inverse)
+
+
+def _unit_slip(slope: float) -> str | None:
+    """The unit mistake a slope matches within 35 % (|log| < 0.3), else None."""
+    if not slope > 0:
+        return None
+    name, f = min(UNIT_SLIPS.items(), key=lambda kv: abs(math.log(slope / kv[1])))
+    return name if abs(math.log(slope / f)) < 0.3 else None
 
 
 def _ref_rate(w: DriveWindows) -> np.ndarray:
@@ -96,6 +111,10 @@ def _gyro_sign(w: DriveWindows) -> Finding | None:
     if slope < 0:
         return Finding("gyro_sign", False, f"imu_gz against the reference yaw rate: slope {slope:.2f}, r {r:.2f} "
                        f"over {x.size} windows: the gyro sign looks flipped", values, "flip_gyro")
+    if slope > 1.0 / GYRO_MIN_SLOPE:  # the gyro reads more than twice the rotation: a unit
+        unit = _unit_slip(1.0 / slope)
+        return Finding("gyro_sign", False, f"imu_gz reads {slope:.3g} times the reference yaw rate (r {r:.2f}): "
+                       + (f"{unit}?" if unit else "the wrong unit?"), values, unit=unit)
     if slope < GYRO_MIN_SLOPE or not (abs(r) >= 0.5):
         return Finding("gyro_sign", False, f"imu_gz hardly follows the reference yaw rate (slope {slope:.2f}, r {r:.2f}): "
                        "the wrong axis or unit?", values)
@@ -243,12 +262,44 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
             f"{slope:.3f} over {u.size} windows")
     lo, hi = WHEEL_SCALE
     if not lo <= slope <= hi:
-        guess = {"rpm given as rad/s": 2 * math.pi / 60, "deg/s given as rad/s": math.pi / 180,
-                 "rev/s given as rad/s": 2 * math.pi}
-        name, f = min(guess.items(), key=lambda kv: abs(math.log(max(slope, 1e-12) / kv[1])))
-        hint = f"{name} (slope {f:.3g})?" if abs(math.log(max(slope, 1e-12) / f)) < 0.3 else "a unit?"
-        return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values)
+        unit = _unit_slip(slope)
+        hint = f"{unit} (slope {UNIT_SLIPS[unit]:.3g})?" if unit else "a unit?"
+        return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values,
+                       unit=unit)
     return Finding("wheel_scale", True, text, values)
+
+
+UNIT_COLUMNS = {"wheel_scale": "left_wheel_vel_*, right_wheel_vel_*", "gyro_sign": "imu_yaw_*"}
+
+
+def refuse_unit_slips(findings: Sequence[Finding], where: str) -> None:
+    """A one-line :class:`RunError` for the first finding whose numbers match a unit mistake (its ``unit``): a log in
+    rpm or deg/s is bad input, scored it would blame the robot's model for a factor of 9.5 or 57."""
+    for f in findings:
+        if f.unit:
+            raise RunError(where, UNIT_COLUMNS.get(f.check, f.check), f"slope {f.values['slope']:.4g}",
+                           f"{f.evidence}; convert the column to rad/s")
+
+
+def scored_windows(data_path: str | Path, wheel_radius: float | None) -> tuple[DriveWindows, DriveWindows,
+                                                                                list[Finding]]:
+    """The windows of a DRIVE table or a continuous Run (``import-bag`` / ``import-csv``), those the real benchmark
+    scores (:func:`bench.real.windows.valid_windows`) and their findings; a unit mistake is refused
+    (:func:`refuse_unit_slips`).  Used by ``skidbench real`` and ``real-gap``."""
+    from bench.real.drive import import_drive_windows
+    from bench.real.run_windows import is_run_file, windows_from_run
+    from bench.real.windows import valid_windows
+    from bench.run import Run
+
+    data_path = Path(data_path)
+    if is_run_file(data_path):  # a continuous run (import-bag / import-csv): cut into DRIVE windows
+        allw = windows_from_run(Run.from_parquet(data_path), where=str(data_path))
+    else:
+        allw = import_drive_windows(data_path)
+    w = allw.subset(valid_windows(allw))
+    findings = check_windows(w, wheel_radius)
+    refuse_unit_slips(findings, str(data_path))
+    return allw, w, findings
 
 
 def check_windows(w: DriveWindows, wheel_radius: float | None = None) -> list[Finding]:
