@@ -9,7 +9,9 @@
   written into site-packages.
 
 Overrides: ``--results DIR`` of the commands, ``SKIDBENCH_CACHE`` for the run cache (its parent holds the result
-cache), ``SKIDBENCH_DATA`` for the real data sets.
+cache), ``SKIDBENCH_DATA`` for the real data sets, ``SKIDBENCH_SCENARIOS`` for the scenario folder (the sensitivity
+study, :mod:`bench.reproduce.sensitivity`, runs the papers on a copy with one chosen parameter changed; a result's
+key hashes the folder's files, not its path).
 """
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ def in_checkout() -> bool:
     return (CHECKOUT / "pyproject.toml").is_file() and (CHECKOUT / "scenarios").is_dir()
 
 
-SCENARIO_DIR = CHECKOUT / "scenarios" if in_checkout() else PACKAGE / "scenarios"
+SCENARIO_DIR = (Path(os.environ["SKIDBENCH_SCENARIOS"]).resolve() if os.environ.get("SKIDBENCH_SCENARIOS")
+                else CHECKOUT / "scenarios" if in_checkout() else PACKAGE / "scenarios")
 
 
 def default_results() -> Path:

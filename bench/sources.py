@@ -47,7 +47,7 @@ SOURCE_KINDS = ("paper", "datasheet", "calibration", "real", "testbed", "chosen"
 OVERRIDE = "override"  # set by a scenario's overrides or --set; never written in a platform / terrain file
 DESCRIPTIVE = ("name", "source")  # file keys that describe, not parameterise
 _CLAIM = re.compile(r"^[a-z][a-z0-9_]*\.[A-Za-z0-9_]+$")
-_ENTRY_KEYS = ("kind", "ref", "claims")
+_ENTRY_KEYS = ("kind", "ref", "claims", "alternative", "alternative_ref")
 
 # sources of the dataclass defaults (a field the file does not set); kind "testbed"
 DEFAULT_REFS: dict[str, str] = {
@@ -123,9 +123,15 @@ DEFAULT_REFS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Source:
+    """Where a parameter's value comes from.  A ``chosen`` one names the ``claims`` it was chosen for, and may name an
+    ``alternative`` value (as the file writes it, with ``alternative_ref``: why that one) that the sensitivity study
+    (:mod:`bench.reproduce.sensitivity`) runs the papers at, to show which verdicts the choice decides."""
+
     kind: str
     ref: str
     claims: tuple[str, ...] = ()
+    alternative: Any = None
+    alternative_ref: str = ""
 
 
 class Sources(Mapping[str, Source]):
@@ -212,7 +218,9 @@ def _entries(table: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, 
 
 
 def _source(entry: Any, file: Path | str, field: str, value: Any, kinds: tuple[str, ...]) -> Source:
-    """One entry as a Source; a malformed entry raises SpecError(file, field, value, why)."""
+    """One entry as a Source; a malformed entry raises SpecError(file, field, value, why).  ``value`` is the
+    parameter's value (its type is the alternative's), or the entry itself when the value is not at hand."""
+    typed = value is not entry
     if isinstance(entry, Source):
         entry = dataclasses.asdict(entry)
     if not isinstance(entry, Mapping):
@@ -232,7 +240,20 @@ def _source(entry: Any, file: Path | str, field: str, value: Any, kinds: tuple[s
                                             "(claims = [\"<paper>.<claim id>\"])")
     if kind != "chosen" and claims:
         raise SpecError(file, field, value, f"only a 'chosen' source lists claims (kind is {kind!r})")
-    return Source(kind, ref.strip(), tuple(claims))
+    alt, alt_ref = entry.get("alternative"), entry.get("alternative_ref", "")
+    if alt is not None or alt_ref:
+        if kind != "chosen":
+            raise SpecError(file, field, value, f"only a 'chosen' source names an alternative (kind is {kind!r})")
+        if not isinstance(alt_ref, str) or not alt_ref.strip() or alt is None:
+            raise SpecError(file, field, value, "an alternative needs both alternative = <value> and "
+                                                "alternative_ref = \"why this value\"")
+        number = (int, float)
+        same = (isinstance(alt, number) and isinstance(value, number) and not isinstance(alt, bool)
+                if isinstance(value, number) else type(alt) is type(value))
+        if typed and not same:
+            raise SpecError(file, field, alt, f"the alternative must be a value of the parameter's type "
+                                              f"({type(value).__name__})")
+    return Source(kind, ref.strip(), tuple(claims), alt, alt_ref.strip() if isinstance(alt_ref, str) else "")
 
 
 def parameters(data: Mapping[str, Any], prefix: str = "") -> Iterator[tuple[str, Any]]:

@@ -47,9 +47,10 @@ def _repro_args(p: argparse.ArgumentParser) -> None:
 
 
 EXTRAS: dict[str, Any] = {}  # name -> callable(results_dir: Path, quick: bool, workers: int[, extended: bool])
-EXTENDED_EXTRAS = ("league", "stress")  # the extras with an extended variant (`reproduce --extended --all` runs them)
+EXTENDED_EXTRAS = ("league", "stress", "sensitivity")  # the extras `reproduce --extended --all` runs
+EXTENDED_ONLY = ("sensitivity",)  # ... and those only it runs
 # the extras' cost order (cold, 2 workers), longest first: the order in which they run beside the papers
-EXTRA_COST_ORDER = ("league", "stress", "real", "gap")
+EXTRA_COST_ORDER = ("sensitivity", "league", "stress", "real", "gap")
 
 
 EXTRA_OUTPUTS: dict[str, tuple[str, ...]] = {}  # name -> the relative-path prefixes of its files in the results folder
@@ -184,7 +185,10 @@ def _reproduce(a: argparse.Namespace) -> int:
             papers = having  # [] when none has one: then no paper runs
     extras = [p for p in a.papers if p in EXTRAS]
     if a.all or not a.papers:
-        extras = list(EXTENDED_EXTRAS if extended else EXTRAS)
+        extras = list(EXTENDED_EXTRAS if extended else [x for x in EXTRAS if x not in EXTENDED_ONLY])
+    if not extended and (only := [x for x in extras if x in EXTENDED_ONLY]):
+        print(f"error: reproduce: {', '.join(only)} runs with --extended only", file=sys.stderr)
+        return 2
     if extended and (bad := [x for x in extras if x not in EXTENDED_EXTRAS]):
         print(f"error: reproduce --extended: {', '.join(bad)} has no extended variant "
               f"(those that have: {', '.join(EXTENDED_EXTRAS)})", file=sys.stderr)
@@ -376,6 +380,17 @@ def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # ser
     from bench.gap import write_worked_example
 
     write_worked_example(Path(results_dir) / "gap")
+
+
+@register_extra("sensitivity", outputs=("sensitivity",))
+def _extra_sensitivity(results_dir: Path, quick: bool, workers: int = 1, extended: bool = False) -> None:
+    """The verdicts a chosen testbed parameter decides (``sensitivity.md``, :mod:`bench.reproduce.sensitivity`):
+    each choice's papers re-run at its declared alternative, against the full run's ``results/claims.json``."""
+    from bench.reproduce.sensitivity import run_sensitivity
+
+    doc = run_sensitivity(results_dir, workers=workers)
+    n = sum(1 for c in doc["choices"] for r in c["flips"] if not r["target"])
+    print(f"sensitivity: {len(doc['choices'])} choices, {n} verdicts that are not calibration targets change")
 
 
 @register_extra("stress", outputs=("stress",))

@@ -17,19 +17,24 @@ from bench.reproduce.runner import REPO
 __all__ = ["code_key", "compiled_extensions", "git_commit", "package_versions"]
 
 
-_WHERE_ONLY = ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE")  # say where caches are, not what a result is
+# say where caches and scenario files are, not what a result is (the scenario files' contents are hashed)
+_WHERE_ONLY = ("SKIDBENCH_CACHE", "SKIDBENCH_TEST_CACHE", "SKIDBENCH_SCENARIOS")
 
 
 def code_key(*extra: str) -> str:
     """Hash of everything a result depends on: the source of bench/ and methods/, the scenario,
-    platform, terrain and paper files, the installed package versions, which C extensions run
+    platform, terrain and paper files (of :data:`bench.paths.SCENARIO_DIR`), the installed package versions, which C extensions run
     (:func:`compiled_extensions`), plus ``extra``."""
+    from bench.paths import SCENARIO_DIR
+
     h = hashlib.sha256()
-    for folder, pattern in (("bench", "**/*.py"), ("bench", "**/*.c"), ("methods", "**/*.py"), ("methods", "**/*.c"),
-                            ("scenarios", "**/*.toml"), ("bench/scenarios", "**/*.toml")):  # checkout / installed
+    for folder, pattern in (("bench", "**/*.py"), ("bench", "**/*.c"), ("methods", "**/*.py"), ("methods", "**/*.c")):
         for p in sorted((REPO / folder).glob(pattern)):
             h.update(str(p.relative_to(REPO)).encode())
             h.update(p.read_bytes())
+    for p in sorted(SCENARIO_DIR.glob("**/*.toml")):  # the checkout's, the installed package's or SKIDBENCH_SCENARIOS
+        h.update(("scenarios/" + p.relative_to(SCENARIO_DIR).as_posix()).encode())
+        h.update(p.read_bytes())
     h.update(json.dumps(package_versions(), sort_keys=True).encode())
     h.update(json.dumps(compiled_extensions(), sort_keys=True).encode())
     h.update(json.dumps(sorted((k, v) for k, v in os.environ.items() if k.startswith("SKIDBENCH_")

@@ -312,6 +312,25 @@ def _extended_verdicts(results_dir: Path, res: PaperResult) -> str:
     return f"their claims in the last extended run (commit `{commit}`): {', '.join(parts)}" if parts else ""
 
 
+def _sensitivity(results_dir: Path) -> tuple[dict[str, list[str]], set[str], str] | None:
+    """From the last extended run's sensitivity study (``results/extended/sensitivity.json``,
+    :mod:`bench.reproduce.sensitivity`): {claim: the chosen parameters whose alternative changes its verdict} for the
+    claims that are not calibration targets, the papers it re-ran and its commit; None when it has not run."""
+    try:
+        doc = json.loads((Path(results_dir) / "extended" / "sensitivity.json").read_text())
+        decided: dict[str, list[str]] = {}
+        for c in doc["choices"]:
+            for r in c["flips"]:
+                if not r["target"]:
+                    decided.setdefault(r["claim"], []).extend(e["name"] for e in c["edits"])
+        return decided, {p for c in doc["choices"] for p in c["papers"]}, str(doc.get("commit", "?"))[:12]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+SENSITIVITY_LINK = "extended/sensitivity.md"
+
+
 def write_report(results: list[PaperResult], results_dir: Path, quick: bool, runner: Runner, seconds: float,
                  extended: bool = False) -> Path:
     from bench.cpu import dispatch_state
@@ -330,16 +349,22 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         "that fails inside it is marked *not refuted*: the data cannot tell it from the bound, and *the means favour the claim* when it fails by the "
         "interval alone; a quick run's fewer seeds and shorter runs may give a cause of their own), *calibration target* (a testbed parameter was chosen "
         "to produce this outcome: never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
-        "are listed apart, per paper.", "",
+        "are listed apart, per paper. A verdict marked *decided by a chosen parameter* changes when a parameter "
+        f"chosen for another claim takes its declared alternative ([the sensitivity study]({SENSITIVITY_LINK}), "
+        "`reproduce --extended`): it holds or fails at the testbed's choice, not at a published number.", "",
         "## Headline claims", "", "| paper | claim | verdict | cause | key numbers |", "|---|---|---|---|---|",
     ]
+    sens = None if quick else _sensitivity(results_dir)
+    decided = sens[0] if sens else {}
     for res in results:
         heads = _groups(res.claims)["headline"]
         if not heads:
             lines.append(f"| [{res.paper}]({res.paper}/README.md) | no claim marked headline | — | — | — |")
         for c in heads:
             more = f"{res.paper}/{DETAILS}#claim-{c['id']}"
-            lines.append(f"| [{res.paper}]({res.paper}/README.md) | {cell(c['text'], more)} | {_verdict(c)} "
+            by = decided.get(f"{res.paper}.{c['id']}")
+            mark = f" *decided by a chosen parameter* ([{', '.join(sorted(set(by)))}]({SENSITIVITY_LINK}))" if by else ""
+            lines.append(f"| [{res.paper}]({res.paper}/README.md) | {cell(c['text'], more)} | {_verdict(c)}{mark} "
                          f"| {_cause(c, more, with_note=False)} | {cell(c['measured'], more)} |")
     lines += ["", "## Per paper", ""]
     for res in results:
@@ -358,6 +383,10 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
                    for c in res.claims if c.get("verdict") == "calibration target"]
         if targets:
             lines.append(f"- calibration targets: {', '.join(targets)}")
+        if sens and res.paper in sens[1]:
+            mine = sorted(k.split(".", 1)[1] for k in decided if k.startswith(res.paper + "."))
+            lines.append(f"- verdicts decided by a chosen parameter (they change at its alternative; last extended "
+                         f"run, commit `{sens[2]}`, [sensitivity]({SENSITIVITY_LINK})): {', '.join(mine) or 'none'}")
         lines += [f"- {len(res.tables)} tables, {len(res.figures)} figures, every claim in detail: "
                   f"[{res.paper}/{DETAILS}]({res.paper}/{DETAILS}); computed in {res.seconds:.1f} s", ""]
     path = results_dir / ("REPORT_quick.md" if quick else "REPORT.md")
@@ -377,6 +406,8 @@ EXTRA_RESULTS = (  # (file under results/, what it is): written by the extras of
     ("real/husky_gap.md", "gap workflow with the testbed's husky model against the real data"),
     ("gap/worked_example.md", "gap workflow worked example on simulated data with a hidden effect"),
     ("stress.md", "filters under stress: GNSS outage, IMU spikes, encoder dropouts"),
+    ("extended/sensitivity.md", "verdicts a chosen testbed parameter decides: the papers re-run at each choice's "
+                                "declared alternative (`reproduce --extended`)"),
 )
 EXTRAS_BEGIN, EXTRAS_END = "<!-- extras -->", "<!-- /extras -->"
 

@@ -1,0 +1,170 @@
+"""The sensitivity study (bench.reproduce.sensitivity): which verdicts a chosen testbed parameter decides.
+
+Checked against independent expectations: a TOML edit read back by tomllib; the grouping of chosen parameters by
+the claims they name; the verdict comparison on hand-made claims; the alternatives the shipped files declare (each
+a value of its parameter's type, each written into a copy that the loader reads back); and the report's mark on a
+headline claim that a choice decides (a fake paper, as tests/test_claims.py builds it).
+"""
+from __future__ import annotations
+
+import json
+import textwrap
+import tomllib
+
+import pytest
+
+from bench import reproduce as R
+from bench.reproduce.sensitivity import Choice, Edit, choices, flips, papers_using, run_sensitivity, set_value
+from bench.schema import SpecError
+from bench.sources import file_sources
+from bench.spec import SCENARIO_DIR, load_platform, load_terrain
+from tests.test_claims import FAKE, _sources
+
+TOML = textwrap.dedent('''
+    name = "robot"
+    mass = 10.0  # kg
+    [motor]
+    max_current = 120.0  # A: chosen
+    max_power = 5.0
+    [sensors.gnss]
+    rate_hz = 5.0
+    [sources]
+    mass = {kind = "paper", ref = "x"}
+''')
+
+
+def test_set_value_writes_the_key_of_its_table_only_and_reads_back():
+    out = set_value(TOML, "motor.max_current", 60.0)
+    doc = tomllib.loads(out)
+    assert doc["motor"] == {"max_current": 60.0, "max_power": 5.0} and doc["mass"] == 10.0
+    assert tomllib.loads(set_value(TOML, "mass", 12.5))["mass"] == 12.5
+    assert tomllib.loads(set_value(TOML, "sensors.gnss.rate_hz", 1.0))["sensors"]["gnss"]["rate_hz"] == 1.0
+    assert tomllib.loads(set_value('model = "janosi"\n', "model", "coulomb"))["model"] == "coulomb"
+    with pytest.raises(KeyError):
+        set_value(TOML, "max_current", 1.0)  # not at the top level
+    with pytest.raises(KeyError):
+        set_value(TOML, "motor.stall_torque", 1.0)
+
+
+def _chosen(tmp_path, extra: str = "") -> None:
+    plat = tmp_path / "platforms"
+    plat.mkdir(exist_ok=True)
+    (tmp_path / "terrains").mkdir(exist_ok=True)
+    (plat / "bot.toml").write_text(textwrap.dedent('''
+        name = "bot"
+        mass = 10.0
+        [motor]
+        max_current = 120.0
+        max_power = 5.0
+        [sources]
+        mass = {kind = "chosen", ref = "r", claims = ["p.a"], alternative = 12.0, alternative_ref = "why m"}
+        "motor.max_current" = {kind = "chosen", ref = "r", claims = ["p.a"], alternative = 60.0, alternative_ref = "w"}
+        "motor.max_power" = {kind = "chosen", ref = "r", claims = ["p.b"]}
+    ''') + extra)
+
+
+def test_choices_group_the_parameters_chosen_for_the_same_claims(tmp_path):
+    _chosen(tmp_path)
+    got = choices(tmp_path)
+    assert len(got) == 1  # max_power declares no alternative: not run
+    c, = got
+    assert c.claims == ("p.a",) and c.files == ("platforms/bot.toml",)
+    assert {(e.key, e.value, e.alternative) for e in c.edits} == {("mass", 10.0, 12.0), ("motor.max_current", 120.0, 60.0)}
+
+
+@pytest.mark.parametrize("entry, field", [
+    ('{kind = "paper", ref = "r", alternative = 1.0, alternative_ref = "w"}', "only a 'chosen' source"),
+    ('{kind = "chosen", ref = "r", claims = ["p.a"], alternative = 1.0}', "alternative_ref"),
+    ('{kind = "chosen", ref = "r", claims = ["p.a"], alternative = "x", alternative_ref = "w"}', "type"),
+])
+def test_a_malformed_alternative_is_a_one_line_error(entry, field):
+    with pytest.raises(SpecError) as exc:
+        file_sources(tomllib.loads(f"mass = 1.0\n[sources]\nmass = {entry}\n"), "f.toml")
+    assert field in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_every_shipped_alternative_loads_as_a_valid_spec(tmp_path):
+    """Each declared alternative, written into a copy of its file, loads (a valid platform / terrain) with the value."""
+    got = choices()
+    assert got, "the shipped files declare alternatives"
+    for c in got:
+        for e in c.edits:
+            copy = tmp_path / e.file
+            copy.parent.mkdir(parents=True, exist_ok=True)
+            copy.write_text(set_value((SCENARIO_DIR / e.file).read_text(), e.key, e.alternative))
+            spec = (load_platform if e.file.startswith("platforms/") else load_terrain)(copy)
+            obj = spec
+            for part in e.key.split("."):
+                obj = getattr(obj, part)
+            assert obj == e.alternative, (e.name, obj)
+
+
+def test_flips_lists_the_changed_verdicts_of_the_papers_run():
+    base = {"p.a": {"verdict": "holds"}, "p.b": {"verdict": "does not hold"}, "q.c": {"verdict": "holds"}}
+    alt = {"p.a": {"verdict": "does not hold", "measured": "1 < 0"}, "p.b": {"verdict": "does not hold"},
+           "q.c": {"verdict": "does not hold"}}
+    rows = flips(base, alt, ["p"])
+    assert [(r["claim"], r["base"], r["alternative"]) for r in rows] == [("p.a", "holds", "does not hold")]
+    # a calibration target keeps its verdict string: its numbers' verdict (holds) is what may change
+    base = {"p.t": {"verdict": "calibration target", "holds": True}, "p.u": {"verdict": "calibration target",
+                                                                            "holds": False}}
+    alt = {"p.t": {"verdict": "calibration target", "holds": False}, "p.u": {"verdict": "calibration target",
+                                                                            "holds": False}}
+    assert [r["claim"] for r in flips(base, alt, ["p"])] == ["p.t"]
+
+
+def test_papers_using_match_the_platform_and_terrain_names():
+    c = Choice(("p.a",), (Edit("platforms/dubhe.toml", "motor.max_current", 120.0, 60.0, "w"),))
+    manifest = {"scenarios": {
+        "1": {"paper": "liu2020", "platform": {"name": "dubhe"}, "terrain": {"name": "dirt"}},
+        "2": {"paper": "yi2009", "platform": {"name": "yi2009_4wd"}, "terrain": {"name": "dubhe"}},
+        "3": {"paper": "league", "platform": {"name": "dubhe"}, "terrain": {"name": "dirt"}}}}
+    assert papers_using(c, manifest, ["liu2020", "yi2009"]) == ["liu2020", "yi2009"]
+    assert papers_using(c, manifest, ["yu2010"]) == []
+
+
+def test_the_study_and_the_report_mark_a_verdict_a_choice_decides(tmp_path, monkeypatch):
+    """run_sensitivity with the child run replaced by hand-made claims: a flip of a claim that is not a calibration
+    target is listed as decided, a flip of a target is not; the report marks the headline row and the paper."""
+    d = tmp_path / "papers"
+    d.mkdir()
+    (d / "p.toml").write_text(FAKE)
+    monkeypatch.setattr("bench.reproduce.paper.PAPERS_DIR", d)
+    monkeypatch.setattr("bench.reproduce.sources.SOURCE_DIRS", _sources(tmp_path))
+    out = tmp_path / "results"
+    R.reproduce(["p"], results_dir=out, cache_dir=tmp_path / "cache" / "runs", log=lambda s: None)
+    base = json.loads((out / "claims.json").read_text())["claims"]
+    assert base["p.fails"]["verdict"] == "does not hold" and base["p.order"]["verdict"] == "calibration target"
+
+    study = tmp_path / "study"  # a scenario folder of its own (test_claims' files are not all strict specs)
+    study.mkdir()
+    _chosen(study)
+    alt = {k: dict(v) for k, v in base.items()}
+    alt["p.fails"]["verdict"] = "holds"
+    alt["p.order"]["verdict"] = "does not hold"
+    monkeypatch.setattr("bench.reproduce.sensitivity.run_choice", lambda c, papers, workers, root: alt)
+    monkeypatch.setattr("bench.reproduce.paper.list_papers", lambda: ["p"])
+    manifest = {"scenarios": {"1": {"paper": "p", "platform": {"name": "bot"}, "terrain": {"name": "vinyl"}}}}
+    (out / "runs_manifest.json").write_text(json.dumps(manifest))
+    doc = run_sensitivity(out / "extended", base_file=out / "claims.json", root=study)
+    rows = {r["claim"]: r["target"] for c in doc["choices"] for r in c["flips"]}
+    assert rows == {"p.fails": False, "p.order": True}
+    assert "p.fails" in (out / "extended" / "sensitivity.md").read_text()
+
+    R.reproduce(["p"], results_dir=out, cache_dir=tmp_path / "cache" / "runs", log=lambda s: None)
+    report = (out / "REPORT.md").read_text()
+    head = report.split("## Headline claims")[1].split("## Per paper")[0]
+    fails = next(ln for ln in head.splitlines() if "double < speed" in ln)
+    order = next(ln for ln in head.splitlines() if "speed < double" in ln)
+    assert "decided by a chosen parameter" in fails and "bot.mass" in fails
+    assert "decided by a chosen parameter" not in order
+    assert "verdicts decided by a chosen parameter" in report.split("## Per paper")[1]
+
+
+def test_the_study_runs_with_extended_only(capsys):
+    from bench.cli import main
+    from bench.cli.reproduce import EXTENDED_EXTRAS, EXTENDED_ONLY, EXTRAS
+
+    assert "sensitivity" in EXTRAS and "sensitivity" in EXTENDED_EXTRAS and "sensitivity" in EXTENDED_ONLY
+    assert main(["reproduce", "sensitivity"]) == 2
+    assert "runs with --extended only" in capsys.readouterr().err
