@@ -275,6 +275,10 @@ def file_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]
     if not isinstance(raw, Mapping):
         raise SpecError(file, "sources", raw, "expected a [sources] table")
     params = dict(parameters(data))
+    if params and "sources" not in data:
+        raise SpecError(file, "sources", None, "a testbed spec names the source of every parameter in a [sources] "
+                        "table (copy one of scenarios/platforms/ or terrains/); a TOML with wheel_radius and track "
+                        "alone serves `skidbench real` only")
     entries = dict(_entries(raw))
     for key, entry in entries.items():
         if key not in params:

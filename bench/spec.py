@@ -460,13 +460,24 @@ def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str,
             given or {})
 
 
+def _known(name_or_path: str | Path, folder: Path, what: str) -> Path:
+    """The file of a registered name or a path; an unknown bare name is a one-line error listing the known ones."""
+    path = _resolve(name_or_path, folder)
+    p = Path(name_or_path)
+    if not path.exists() and p.suffix != ".toml" and len(p.parts) == 1:
+        known = sorted(f.stem for f in folder.glob("*.toml"))
+        raise SpecError(f"<{what} name>", what, str(name_or_path),
+                        f"unknown {what}; known: {', '.join(known)} (or the path of a .toml file)")
+    return path
+
+
 def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
-    path = _resolve(name_or_path, root / "platforms")
+    path = _known(name_or_path, root / "platforms", "platform")
     return build(Platform, _read_part(path, Platform), path)
 
 
 def load_terrain(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Terrain:
-    path = _resolve(name_or_path, root / "terrains")
+    path = _known(name_or_path, root / "terrains", "terrain")
     data = _read_part(path, Terrain)
     data.pop("dt_max", None)  # a requirement on the scenario's step (load_scenario), not a terrain field
     return build(Terrain, data, path)

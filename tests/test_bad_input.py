@@ -484,3 +484,27 @@ def test_bad_spec_values_are_named_with_the_value_found() -> None:
         reference_position_noise(run)
     with pytest.raises(RunError, match=r"saturation_accel.*-1\.0"):
         imu_saturation(run)
+
+
+def test_a_platform_path_in_a_mapping_is_read_beside_the_mapping(tmp_path, monkeypatch):
+    """`name = "robot.toml"` in a mapping names the file next to it, whatever the working directory (a new user's
+    first try; it was resolved from the working directory)."""
+    d = tmp_path / "lab"
+    d.mkdir()
+    spec = (SCENARIO_DIR / "platforms" / "p3at_pneumatic_20psi.toml").read_text()
+    (d / "robot.toml").write_text(spec.replace('name = "p3at_pneumatic_20psi"', 'name = "lab_robot"', 1))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    run = _csv(d, _wheel_csv(), WHEEL_CSV_MAPPING.replace('"p3at_pneumatic_20psi"', '"robot.toml"'))
+    assert run.meta["platform"]["name"] == "lab_robot"
+
+
+@pytest.mark.parametrize("load, what", [("load_platform", "platform"), ("load_terrain", "terrain")])
+def test_an_unknown_name_lists_the_known_ones(load, what):
+    import bench.spec as S
+
+    with pytest.raises(SpecError) as exc:
+        getattr(S, load)("no_such_thing")
+    msg = str(exc.value)
+    assert f"unknown {what}" in msg and "no_such_thing" in msg and ("husky" in msg or "vinyl" in msg)

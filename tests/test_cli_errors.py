@@ -79,3 +79,16 @@ def test_a_start_yaw_rate_out_of_range_is_one_line_naming_file_field_value(capsy
         assert cli.main(["simulate", "circle_vinyl", "--set", over, "-o", "x.parquet"]) == 2
         lines = capsys.readouterr().err.strip().splitlines()
         assert len(lines) == 1 and "circle_vinyl.toml" in lines[0] and words in lines[0]
+
+
+@pytest.mark.parametrize("argv", [["list"], ["list", "--json"]])  # rich's console, and print
+def test_a_reader_that_goes_away_ends_the_command_quietly(argv) -> None:
+    """`skidbench list | head -0`: stdout closed before the command writes; no traceback, exit 1 (rich's own
+    handling of a broken pipe, and ours for print)."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "bench.cli", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    assert p.wait() == 1 and err == "", err

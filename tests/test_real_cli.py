@@ -196,7 +196,8 @@ def test_an_unseen_robot_scores_from_a_radius_and_track_toml(clean, tmp_path, ca
 
 @pytest.mark.parametrize("toml, field", [('wheel_radius = 0.3\n', "track"), ('track = 1.1\n', "wheel_radius"),
                                          ('wheel_radius = -1\ntrack = 1\n', "wheel_radius"),
-                                         ('wheel_radius = 0.3\nwheel_radius_cm = 30\ntrack = 1\n', "wheel_radius")])
+                                         ('wheel_radius = 0.3\nwheel_radius_cm = 30\ntrack = 1\n', "wheel_radius"),
+                                         ('wheel_radius = 0.3\nwheelradius = 0.2\ntrack = 1\n', "wheelradius")])
 def test_a_platform_toml_missing_what_the_models_need_is_one_line(clean, tmp_path, capsys, toml, field):
     p = tmp_path / "bad.toml"
     p.write_text(toml)
@@ -546,3 +547,20 @@ def test_the_steady_stage_replaces_a_platforms_own_command_map(clean, tmp_path):
     cr = json.loads((tmp_path / "g.json").read_text())["command_response"]
     assert cr["adopted"] == [] and cr["applied"] == {"command_gain_sum": 1.0, "command_limit_mean": None}
     assert cr["catalogue_without"] == ["command_map", "command_limit", "wheel_speed_limit"]
+
+
+@pytest.mark.parametrize("command", ["real", "real-gap"])
+def test_an_output_that_cannot_be_written_is_refused_before_the_run(clean, tmp_path, capsys, command):
+    """--json under a regular file (no folder can be made there): one line naming the option, before any model is
+    fitted or simulated, and --out is not created."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    out = tmp_path / "o"
+    plat = "husky"
+    assert main([command, str(clean[0]), "--platform", plat, "--out", str(out), "--json", str(blocker / "r.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--json" in err and "not a writable folder" in err
+    assert not out.exists()
+    assert main([command, str(clean[0]), "--platform", plat, "--out", str(blocker / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--out" in err and "not a writable folder" in err

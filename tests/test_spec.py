@@ -369,3 +369,14 @@ def test_the_source_of_a_field_named_kind_may_be_an_unquoted_dotted_key():
     assert list(got) == ["platform.sensors.reference.kind"] and got["platform.sensors.reference.kind"].kind == "paper"
     quoted = text.replace("platform.sensors.reference.kind =", '"platform.sensors.reference.kind" =')
     assert override_sources(tomllib.loads(quoted), "x.toml") == got
+
+
+def test_a_spec_without_sources_says_what_a_testbed_spec_needs(tmp_path):
+    """A new user's kinematic TOML given where a testbed spec is needed (real-gap, a mapping's platform): the error
+    says a [sources] table is missing and that `skidbench real` reads such a file, not 'no source' for one field."""
+    p = tmp_path / "mulebot.toml"
+    p.write_text("wheel_radius = 0.15\ntrack = 0.6\n")
+    with pytest.raises(SpecError) as exc:
+        load_platform(p)
+    msg = str(exc.value)
+    assert "mulebot.toml" in msg and "'sources'" in msg and "skidbench real" in msg and "\n" not in msg

@@ -90,12 +90,19 @@ def count(minimum: int) -> Callable[[str], int]:
 
 
 def output_files(a: argparse.Namespace, *names: str) -> None:
-    """Each output file ``--NAME`` given on the command line is a file name, not a folder: checked before anything is
-    computed or written, so that one bad name leaves no other file behind."""
+    """Each output file ``--NAME`` given on the command line is a file name, not a folder, in a folder this user can
+    write (the nearest existing one): checked before anything is computed or written, so that one bad name leaves no
+    other file behind and a long run does not end on it."""
     for name in names:
         path = getattr(a, name, None)
-        if path is not None and Path(path).is_dir():
-            raise SpecError("<command line>", f"--{name.replace('_', '-')}", str(path), "a file name, not a folder")
+        if path is None:
+            continue
+        flag = f"--{name.replace('_', '-')}"
+        if Path(path).is_dir():
+            raise SpecError("<command line>", flag, str(path), "a file name, not a folder")
+        folder = next((p for p in Path(path).absolute().parents if p.exists()), None)  # the nearest that exists
+        if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)):
+            raise SpecError("<command line>", flag, str(path), f"cannot be written: {folder} is not a writable folder")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -127,6 +134,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         _replay(held, show)
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # the reader of stdout went away (`skidbench ... | head`): stop quietly, exit 1 (as rich)
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the final flush goes nowhere
+        except (OSError, ValueError):  # a stdout with no file descriptor (captured)
+            pass
+        return 1
     except Exception as exc:
         if _input_error(exc):
             print(f"error: {_one_line(exc)}", file=sys.stderr)

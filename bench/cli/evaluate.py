@@ -122,14 +122,14 @@ def _evaluate(a: argparse.Namespace) -> int:
         return 2
     out = {"gt": str(a.gt), "est": str(a.est), "align": a.align, "project_to_plane": a.project_to_plane,
            "max_diff": a.max_diff, **res.as_dict()}
+    if a.plot:  # the files first: a reader of stdout that goes away (`| head`) does not lose them
+        _plot(a.plot, ref, est, res)
+    if a.json:
+        atomic_write_text(a.json, json.dumps(out, indent=1, default=float) + "\n")
     print(f"{res.kind} ({res.relation}, {res.unit}; align {a.align}"
           f"{', projected to xy' if a.project_to_plane else ''}; {res.errors.size} values)")
     for k in ("rmse", "mean", "median", "std", "min", "max", "sse"):
         print(f"  {k:>6} {out[k]:.9g}")
-    if a.plot:
-        _plot(a.plot, ref, est, res)
-    if a.json:
-        atomic_write_text(a.json, json.dumps(out, indent=1, default=float) + "\n")
     return 0
 
 

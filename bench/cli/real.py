@@ -135,6 +135,9 @@ def staged_folder(out: Path) -> Iterator[Path]:
     was: removed again if this call made it."""
     if out.exists() and not out.is_dir():
         raise SpecError("<command line>", "--out", str(out), "a folder, not a file")
+    folder = next((p for p in [out.absolute(), *out.absolute().parents] if p.exists()), None)
+    if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)):
+        raise SpecError("<command line>", "--out", str(out), f"cannot be written: {folder} is not a writable folder")
     made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     _remove_dead_stages(out)

@@ -182,10 +182,12 @@ def _platform(mapping: ImportMapping) -> Platform | None:
     name = mapping.platform.name
     if not name:
         return None
+    if name.lower().endswith(".toml") and mapping.source_file and not Path(name).is_absolute():
+        name = str(Path(mapping.source_file).parent / name)  # a path in the mapping is relative to the mapping file
     try:
         return load_platform(name)
     except SpecError as exc:
-        if exc.field != "<file>":
+        if exc.field not in ("<file>", "platform"):  # a missing file, an unknown name: named after the mapping
             raise
         from bench.spec import SCENARIO_DIR
 

@@ -7,12 +7,15 @@ track)``), so a robot the testbed has no spec for is described by
     wheel_radius = 0.3       # [m] from its maker's configuration
     track = 0.9              # [m] wheel separation (centre to centre)
 
-(or the same keys under ``[platform]``).  Any other key is kept for the report.  Lengths may be given in cm or mm
+(or the same keys under ``[platform]``).  Any other field of a testbed platform is kept for the report; a key that
+is none of these is refused (a misspelt ``wheelradius`` would otherwise be ignored).  Lengths may be given in cm or mm
 with a suffixed key (``wheel_radius_cm``); they are converted to metres here, at the file boundary.  A registered
 name (``husky``) or the path of a full testbed spec loads through :func:`bench.spec.load_platform`.
 """
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import math
 from pathlib import Path
 from typing import Any
@@ -51,6 +54,12 @@ def kinematic_platform(spec: str | Path) -> dict[str, Any]:
     doc = read_toml(path, "platform file")
     if isinstance(doc.get("platform"), dict):
         doc = doc["platform"]
+    known = {f.name for f in dataclasses.fields(Platform)} | {"name", "source", "sources"}
+    for k, v in doc.items():  # a misspelt key would be silently ignored: refused, with the nearest known one
+        if k not in known and not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS):
+            near = difflib.get_close_matches(k, sorted(known | {r + s for r in REQUIRED for s in _LENGTH_UNITS}), 1)
+            raise SpecError(path, k, v, "unknown key (a platform file has name, wheel_radius, track and the testbed "
+                            "platform's fields)" + (f"; did you mean {near[0]!r}?" if near else ""))
     out = {k: v for k, v in doc.items() if not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS)}
     for key in REQUIRED:
         out[key] = _length(doc, key, path)

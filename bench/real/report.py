@@ -146,7 +146,7 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
     add(f"- Table: `{out['data_file']}` (sha256 `{out['data_sha256'][:16]}...`), {out['n_windows']} windows of "
         f"2 s at 20 Hz, {len(out['calib_steps']) + len(out['test_steps'])} command steps; "
         f"{out['n_excluded']} windows excluded (non-finite wheel speeds or ICP start/end pose).")
-    add(f"- Platform `{name}`: wheel radius r = {out['wheel_radius']} m, track B = {out['track']} m.")
+    add(f"- Platform `{out['platform']}`: wheel radius r = {out['wheel_radius']} m, track B = {out['track']} m.")
     add(f"- Split by command step, seed {out['seed']}: `numpy.random.default_rng(seed).permutation(steps)`, first "
         f"half calibrates. Calibration: {len(out['calib_steps'])} steps, {out['n_calib_windows']} windows. "
         f"Test: {len(out['test_steps'])} steps, {out['n_test_windows']} windows "

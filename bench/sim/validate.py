@@ -333,6 +333,21 @@ def _motor_line(base: Scenario) -> Check:
                  "Yu 2010 eq. (26), Table II")
 
 
+#: physics checks the testbed fails today, each with its named defect: reported as such (a known failure does not
+#: make ``validate-testbed`` exit 1; any other failure does), and tests/test_validate_testbed.py fails once one passes
+KNOWN_DEFECTS: dict[str, str] = {
+    "ramp_holding_torque": "testbed defect: bench/sim/testbed.py caps a contact's force at k_max |s| "
+                           "(k_max = 0.13 m/dt), so a held robot on 15 deg creeps at m g sin / (4 k_max) = 0.041 m/s "
+                           "(the bristle hold acts only below 0.02 m/s); the only claims on a ramp are Yu's, all "
+                           "calibration targets",
+}
+
+
+def unexpected_failures(checks: list[Check]) -> list[Check]:
+    """The failing checks that are not :data:`KNOWN_DEFECTS`."""
+    return [c for c in checks if not c.passed and c.name not in KNOWN_DEFECTS]
+
+
 def run_checks(progress: Callable[[str], None] | None = None, quick: bool = False) -> list[Check]:
     """The physics checks (``quick`` is accepted for the command line; every check is short)."""
     say = progress or (lambda s: None)
