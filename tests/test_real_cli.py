@@ -28,12 +28,14 @@ R, B, CHI, TAU = 0.30, 1.10, 1.6, 0.15
 PER = 120  # samples per 6 s step
 
 
-def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI) -> dict:
+def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI, pivot: bool = False) -> dict:
     rng = np.random.default_rng(seed)
     pre = N + 5
     n = pre + n_steps * PER + 5
     label = np.clip((np.arange(n) - pre) // PER, 0, n_steps - 1)
     cmd = rng.uniform(-4, 4, size=(n_steps, 2))[label]
+    if pivot:  # turns on the spot only: the sides opposite and equal
+        cmd[:, 1] = -cmd[:, 0]
     cmd[:pre] = 0.0
     wheel = np.zeros((n, 2))
     a = DRIVE_DT / TAU
@@ -564,3 +566,20 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_run(clean, tmp_p
     assert main([command, str(clean[0]), "--platform", plat, "--out", str(blocker / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert "--out" in err and "not a writable folder" in err
+
+
+def test_a_log_of_pivot_turns_is_not_taken_for_a_unit_mistake(tmp_path):
+    """Turning on the spot, the body's path speed is the reference's noise (2 mm per sample here) and the mean tread
+    speed the encoders' noise: the slope is anything, the correlation poor; the data are scored, never refused."""
+    from bench.real.sanity import UNIT_MIN_R, scored_windows
+
+    df = _table(_log(n_steps=20, pivot=True))
+    rng = np.random.default_rng(5)
+    for b in ("icp_x", "icp_y"):
+        df[_cols(df, b)] += rng.normal(0, 0.002, size=(len(df), N))
+    path = tmp_path / "pivots.parquet"
+    df.to_parquet(path)
+    _, w, found = scored_windows(path, R)
+    scale = next(f for f in found if f.check == "wheel_scale")
+    assert scale.unit is None and not scale.values["r"] >= UNIT_MIN_R, scale.line()
+    assert w.n_windows > 0

@@ -25,7 +25,7 @@ check                  evidence                                                 
 ``wheel_scale``        slope (least squares through the origin) of the reference's     slope outside 1/3..3
                        path speed (ICP path length over the window, signed as the      (0.105: rpm as rad/s;
                        treads) against the tread speed r (w_l + w_r) / 2, when the     0.017: deg/s; or the
-                       wheel radius r is known                                          radius); no fix
+                       wheel radius r is known, and their correlation                   radius); no fix
 =====================  ================================================================  =====================
 
 Thresholds are physical bounds, not fitted to the Husky table: a 0.3 m/s^2 accelerometer offset is 1.7 deg of
@@ -36,7 +36,10 @@ the robot's, reported, not a defect), while a T10 beyond 1 s (half a DRIVE windo
 command are what a clock offset between the streams gives.  A skid-steered body moves slower than its treads in a
 turn and never 3 times faster or slower over a whole log (Husky: slope 0.97); wheel speeds logged in rpm read 9.5
 times too fast (slope 0.105), in deg/s 57 times.  A rpm log at a Husky's speeds (under 70 rpm) passes the table
-reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.
+reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.  A
+slope within 35 % of such a factor, with the two speeds (or rates) correlating at 0.6 or better (Husky 0.84; synthetic logs of pivot turns, 3 seeds: 0.02-0.26), is refused as bad
+input (:func:`refuse_unit_slips`); a log of pivot turns, whose path speed is ICP noise, correlates poorly and only
+warns.
 """
 from __future__ import annotations
 
@@ -63,6 +66,7 @@ MAX_LAG = 1.0  # [s] T10 beyond half a DRIVE window: the transitory window canno
 MAX_LEAD = 0.1  # [s] wheel speeds ahead of their command: a clock offset the other way
 MIN_STEP = 1.0  # [rad/s] command steps smaller than this are not timed
 WHEEL_SCALE = (1.0 / 3.0, 3.0)  # reference path speed / tread speed: outside it, a unit or radius error
+UNIT_MIN_R = 0.6  # a slope is read as a unit mistake only when the two speeds correlate at least this well
 FIXES = ("flip_gyro", "imu_offset", "drop_stale")
 
 
@@ -112,7 +116,7 @@ def _gyro_sign(w: DriveWindows) -> Finding | None:
         return Finding("gyro_sign", False, f"imu_gz against the reference yaw rate: slope {slope:.2f}, r {r:.2f} "
                        f"over {x.size} windows: the gyro sign looks flipped", values, "flip_gyro")
     if slope > 1.0 / GYRO_MIN_SLOPE:  # the gyro reads more than twice the rotation: a unit
-        unit = _unit_slip(1.0 / slope)
+        unit = _unit_slip(1.0 / slope) if abs(r) >= UNIT_MIN_R else None
         return Finding("gyro_sign", False, f"imu_gz reads {slope:.3g} times the reference yaw rate (r {r:.2f}): "
                        + (f"{unit}?" if unit else "the wrong unit?"), values, unit=unit)
     if slope < GYRO_MIN_SLOPE or not (abs(r) >= 0.5):
@@ -257,12 +261,15 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
         return None
     u, v = u[ok], v[ok]
     slope = float(u @ v / (u @ u))
-    values = {"slope": slope, "n": float(u.size), "wheel_radius": float(wheel_radius)}
+    a, b = np.abs(u), np.abs(v)  # magnitudes: v takes u's sign, which alone would correlate them
+    r = float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else math.nan
+    values = {"slope": slope, "r": r, "n": float(u.size), "wheel_radius": float(wheel_radius)}
     text = (f"reference path speed against the tread speed r (w_l + w_r) / 2 with r = {wheel_radius:g} m: slope "
-            f"{slope:.3f} over {u.size} windows")
+            f"{slope:.3f}, correlation {r:.2f}, over {u.size} windows")
     lo, hi = WHEEL_SCALE
     if not lo <= slope <= hi:
-        unit = _unit_slip(slope)
+        # a unit only when the speeds follow each other closely (a scale, not the noise of a log of pivot turns)
+        unit = _unit_slip(slope) if r >= UNIT_MIN_R else None
         hint = f"{unit} (slope {UNIT_SLIPS[unit]:.3g})?" if unit else "a unit?"
         return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values,
                        unit=unit)
