@@ -37,9 +37,9 @@ command are what a clock offset between the streams gives.  A skid-steered body 
 turn and never 3 times faster or slower over a whole log (Husky: slope 0.97); wheel speeds logged in rpm read 9.5
 times too fast (slope 0.105), in deg/s 57 times.  A rpm log at a Husky's speeds (under 70 rpm) passes the table
 reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.  A
-slope within 35 % of such a factor, with the two speeds (or rates) correlating at 0.6 or better (Husky 0.84; synthetic logs of pivot turns, 3 seeds: 0.02-0.26), is refused as bad
-input (:func:`refuse_unit_slips`); a log of pivot turns, whose path speed is ICP noise, correlates poorly and only
-warns.
+slope within 35 % of such a factor, with the two speeds (or rates) correlating at 0.6 or better (Husky 0.84;
+synthetic logs of pivot turns, 3 seeds: 0.02-0.26), is refused as bad input (:func:`refuse_unit_slips`); a log of
+pivot turns, whose path speed is ICP noise, correlates poorly and only warns.
 """
 from __future__ import annotations
 
