@@ -248,8 +248,12 @@ def _source(entry: Any, file: Path | str, field: str, value: Any, kinds: tuple[s
             raise SpecError(file, field, value, "an alternative needs both alternative = <value> and "
                                                 "alternative_ref = \"why this value\"")
         number = (int, float)
-        same = (isinstance(alt, number) and isinstance(value, number) and not isinstance(alt, bool)
-                if isinstance(value, number) else type(alt) is type(value))
+        if isinstance(value, bool) or isinstance(alt, bool):  # bool is an int to Python, not to a spec
+            same = isinstance(value, bool) and isinstance(alt, bool)
+        elif isinstance(value, number):
+            same = isinstance(alt, number)
+        else:
+            same = type(alt) is type(value)
         if typed and not same:
             raise SpecError(file, field, alt, f"the alternative must be a value of the parameter's type "
                                               f"({type(value).__name__})")

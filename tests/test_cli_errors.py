@@ -92,3 +92,12 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(argv) -> None:
     p.stdout.close()
     err = p.stderr.read().decode()
     assert p.wait() == 1 and err == "", err
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_not_swallowed(monkeypatch) -> None:
+    """A worker's or a child's pipe breaking is a defect: raised, not a quiet exit 1 (only a closed stdout is)."""
+    cli.build_parser()
+    add_args, _fn, help_ = cli.COMMANDS["list"]
+    monkeypatch.setitem(cli.COMMANDS, "list", (add_args, _raising(BrokenPipeError(32, "Broken pipe")), help_))
+    with pytest.raises(BrokenPipeError):
+        cli.main(["list"])

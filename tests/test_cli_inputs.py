@@ -263,7 +263,9 @@ def test_a_killed_real_leaves_a_stage_that_the_next_run_removes(tmp_path, monkey
 
     import bench.reproduce.runner as runner_mod
     from bench.cli.real import staged_folder
-    from bench.cli.reproduce import _remove_stale_temp_files
+    import time
+
+    from bench.cli.reproduce import STALE_TEMP_AGE, _remove_stale_temp_files
 
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
@@ -284,9 +286,12 @@ def test_a_killed_real_leaves_a_stage_that_the_next_run_removes(tmp_path, monkey
     (results / "real" / f".staging.{dead.pid}.x.tmp" / "half.md").write_text("half")
     (results / "real" / f".staging.{os.getpid()}.y.tmp").mkdir()  # a live `real` writing into results/real
     (results / "real" / ".half.md.abc.tmp").write_text("half")
+    old = time.time() - 2 * STALE_TEMP_AGE  # an interrupted run's temp file: old
+    os.utime(results / "real" / ".half.md.abc.tmp", (old, old))
+    (results / "real" / ".live.md.def.tmp").write_text("a write in progress")  # another reproduction's, now
     monkeypatch.setattr(runner_mod, "DEFAULT_CACHE", tmp_path / "cache")
     _remove_stale_temp_files(results)
-    assert [p.name for p in (results / "real").iterdir()] == [f".staging.{os.getpid()}.y.tmp"]
+    assert sorted(p.name for p in (results / "real").iterdir()) == [".live.md.def.tmp", f".staging.{os.getpid()}.y.tmp"]
 
 
 def _warn_in_a_forked_worker() -> None:

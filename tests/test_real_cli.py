@@ -21,6 +21,7 @@ import pytest
 from bench.cli import main
 from bench.real.drive import DRIVE_DT, import_drive_windows
 from bench.real.sanity import apply_fixes, check_windows
+from bench.run import RunError
 from bench.spec import SCENARIO_DIR
 from tests.test_drive import N, drive_cut
 
@@ -28,7 +29,8 @@ R, B, CHI, TAU = 0.30, 1.10, 1.6, 0.15
 PER = 120  # samples per 6 s step
 
 
-def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI, pivot: bool = False) -> dict:
+def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI, pivot: bool = False,
+         one_speed: bool = False) -> dict:
     rng = np.random.default_rng(seed)
     pre = N + 5
     n = pre + n_steps * PER + 5
@@ -36,6 +38,8 @@ def _log(n_steps: int = 40, seed: int = 1, lag: int = 0, chi: float = CHI, pivot
     cmd = rng.uniform(-4, 4, size=(n_steps, 2))[label]
     if pivot:  # turns on the spot only: the sides opposite and equal
         cmd[:, 1] = -cmd[:, 0]
+    if one_speed:  # driven at one speed, gently steered: the wheel and path speeds cannot correlate
+        cmd = 3.0 + rng.uniform(-0.3, 0.3, size=(n_steps, 2))[label]
     cmd[:pre] = 0.0
     wheel = np.zeros((n, 2))
     a = DRIVE_DT / TAU
@@ -86,6 +90,8 @@ def defect(df: pd.DataFrame, kind: str) -> pd.DataFrame:
             df[_cols(df, b)] *= 60.0 / (2.0 * np.pi)
     elif kind == "gyro_deg":  # the gyro in deg/s
         df[_cols(df, "imu_yaw")] *= 180.0 / np.pi
+    elif kind == "gyro_deg_flipped":  # in deg/s and upside down
+        df[_cols(df, "imu_yaw")] *= -180.0 / np.pi
     elif kind == "stale_reference":  # the reference held over the last 10 samples of 80 % of the windows
         rows = np.random.default_rng(0).random(len(df)) < 0.8
         for b in ("icp_x", "icp_y", "icp_yaw"):
@@ -570,8 +576,8 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_run(clean, tmp_p
 
 def test_a_log_of_pivot_turns_is_not_taken_for_a_unit_mistake(tmp_path):
     """Turning on the spot, the body's path speed is the reference's noise (2 mm per sample here) and the mean tread
-    speed the encoders' noise: the slope is anything, the correlation poor; the data are scored, never refused."""
-    from bench.real.sanity import UNIT_MIN_R, scored_windows
+    speed the encoders' noise: the slope is anything, no window is straight; the data are scored, never refused."""
+    from bench.real.sanity import scored_windows
 
     df = _table(_log(n_steps=20, pivot=True))
     rng = np.random.default_rng(5)
@@ -581,5 +587,33 @@ def test_a_log_of_pivot_turns_is_not_taken_for_a_unit_mistake(tmp_path):
     df.to_parquet(path)
     _, w, found = scored_windows(path, R)
     scale = next(f for f in found if f.check == "wheel_scale")
-    assert scale.unit is None and not scale.values["r"] >= UNIT_MIN_R, scale.line()
+    assert scale.unit is None and scale.values["n_straight"] == 0, scale.line()  # no straight window to judge by
     assert w.n_windows > 0
+
+
+@pytest.mark.parametrize("case", ["one_speed_rpm", "gyro_deg_flipped"])
+def test_a_unit_mistake_is_found_where_a_correlation_could_not(clean, tmp_path, case):
+    """A log driven at one speed (its path and tread speeds cannot correlate) in rpm, and a flipped gyro in deg/s (a
+    negative slope of 57): both refused, the first by the ratio on its straight windows."""
+    from bench.real.sanity import scored_windows
+
+    df = _table(_log(n_steps=20, one_speed=True)) if case == "one_speed_rpm" else clean[1]
+    df = defect(df, "wheel_scale" if case == "one_speed_rpm" else "gyro_deg_flipped")
+    path = tmp_path / f"{case}.parquet"
+    df.to_parquet(path)
+    with pytest.raises(RunError) as exc:
+        scored_windows(path, R)
+    assert ("rpm" if case == "one_speed_rpm" else "deg/s") + " given as rad/s" in str(exc.value)
+
+
+def test_a_run_in_deg_per_s_is_refused_by_the_run_check_naming_its_channel():
+    """The run imports' check (bench.real.run_sanity.check_run) refuses a gyro in deg/s and names the Run's channel
+    (imu_gz), not a DRIVE column."""
+    from bench.real.run_sanity import check_run
+
+    run = _run_of(_log(n_steps=12))
+    run.data["imu_gz"] *= 180.0 / np.pi
+    with pytest.raises(RunError) as exc:
+        check_run(run)
+    msg = str(exc.value)
+    assert "'imu_gz'" in msg and "deg/s given as rad/s" in msg and "imu_yaw" not in msg

@@ -56,9 +56,12 @@ def test_killed_reproduce_leaves_no_partial_file_and_resumes(tmp_path):
         Run.from_parquet(p)  # every cached run is whole
     # the next reproduce removes such temp files before it starts
     import bench.reproduce.runner as runner_mod
-    from bench.cli.reproduce import _remove_stale_temp_files
+    from bench.cli.reproduce import STALE_TEMP_AGE, _remove_stale_temp_files
 
+    old = time.time() - 2 * STALE_TEMP_AGE  # left by the killed run (a younger one may be a live write: kept)
     (cache / ".stale.parquet.abc123.tmp").write_bytes(b"half a parquet")
+    for p in [p for d in (results, cache) if d.exists() for p in d.rglob(".*.tmp") if p.is_file()]:
+        os.utime(p, (old, old))
     saved = runner_mod.DEFAULT_CACHE
     runner_mod.DEFAULT_CACHE = cache
     try:

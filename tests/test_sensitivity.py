@@ -83,6 +83,16 @@ def test_a_malformed_alternative_is_a_one_line_error(entry, field):
     assert field in str(exc.value) and "\n" not in str(exc.value)
 
 
+def test_a_switch_takes_a_switch_as_its_alternative():
+    """bool is an int to Python, not to a spec: true -> false is an alternative, true -> 5.0 is not, 1.0 -> true not."""
+    src = '{kind = "chosen", ref = "r", claims = ["p.a"], alternative = %s, alternative_ref = "w"}'
+    assert file_sources(tomllib.loads(f"flag = true\n[sources]\nflag = {src % 'false'}\n"), "f")["flag"].alternative \
+        is False
+    for value, alt in (("true", "5.0"), ("1.0", "true")):
+        with pytest.raises(SpecError, match="type"):
+            file_sources(tomllib.loads(f"flag = {value}\n[sources]\nflag = {src % alt}\n"), "f")
+
+
 def test_every_shipped_alternative_loads_as_a_valid_spec(tmp_path):
     """Each declared alternative, written into a copy of its file, loads (a valid platform / terrain) with the value."""
     got = choices()
@@ -168,3 +178,23 @@ def test_the_study_runs_with_extended_only(capsys):
     assert "sensitivity" in EXTRAS and "sensitivity" in EXTENDED_EXTRAS and "sensitivity" in EXTENDED_ONLY
     assert main(["reproduce", "sensitivity"]) == 2
     assert "runs with --extended only" in capsys.readouterr().err
+
+
+def test_the_study_skips_without_a_full_run_and_reruns_when_it_changes(tmp_path, monkeypatch, capsys):
+    """No results/claims.json: the extra says so and writes nothing (the extended run goes on); its marker's key
+    follows the full run's files, so a new full run with the same code runs the study again."""
+    import bench.reproduce.sensitivity as S
+    from bench.cli import reproduce as CR
+
+    claims, manifest = tmp_path / "claims.json", tmp_path / "runs_manifest.json"
+    monkeypatch.setattr(S, "base_files", lambda: (claims, manifest))
+    out = tmp_path / "extended"
+    CR._extra_sensitivity(out, False, workers=1, extended=True)
+    assert "skipped: no full run" in capsys.readouterr().out and not out.exists()
+    monkeypatch.setattr(CR, "data_root", lambda: tmp_path)
+    k0 = CR._extra_marker("sensitivity", out, False, True)
+    claims.write_text('{"claims": {}}')
+    manifest.write_text('{"scenarios": {}}')
+    k1 = CR._extra_marker("sensitivity", out, False, True)
+    claims.write_text('{"claims": {"p.a": {"verdict": "holds"}}}')
+    assert len({k0, k1, CR._extra_marker("sensitivity", out, False, True)}) == 3

@@ -134,11 +134,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         _replay(held, show)
         print("interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:  # the reader of stdout went away (`skidbench ... | head`): stop quietly, exit 1 (as rich)
-        try:
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the final flush goes nowhere
-        except (OSError, ValueError):  # a stdout with no file descriptor (captured)
-            pass
+    except BrokenPipeError:
+        if not _stdout_gone():  # another pipe (a worker's, a child's): a defect, reported as one
+            _replay(held, show)
+            raise
+        # the reader of stdout went away (`skidbench ... | head`): stop quietly, exit 1 (as rich does)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the interpreter's final flush goes nowhere
         return 1
     except Exception as exc:
         if _input_error(exc):
@@ -151,6 +152,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         raise
     _replay(held, show)
     return code
+
+
+def _stdout_gone() -> bool:
+    """True when stdout is a pipe whose reader has closed it (poll reports an error on its write end)."""
+    try:
+        import select
+
+        poll = select.poll()
+        poll.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poll.poll(0))
+    except (OSError, ValueError, AttributeError):  # no file descriptor (captured), no poll
+        return False
 
 
 def _replay(held: list[tuple], show: Callable[..., None]) -> None:

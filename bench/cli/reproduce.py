@@ -15,6 +15,7 @@ on import.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import math
@@ -54,15 +55,19 @@ EXTRA_COST_ORDER = ("sensitivity", "league", "stress", "real", "gap")
 
 
 EXTRA_OUTPUTS: dict[str, tuple[str, ...]] = {}  # name -> the relative-path prefixes of its files in the results folder
+EXTRA_INPUTS: dict[str, Any] = {}  # name -> () -> str: what it reads beyond the code, specs and data (its marker's key)
 
 
-def register_extra(name: str, outputs: tuple[str, ...] = ("",)):
+def register_extra(name: str, outputs: tuple[str, ...] = ("",), inputs: Any = None):
     """Register an extra: ``fn(results_dir, quick, workers=..., [extended=True])``.  ``outputs``: the prefixes of the
     relative paths of the files it writes (default: any file of the results folder); its result-cache marker records
-    those files.  Only an extra that names its outputs runs beside the papers (the papers write the folder meanwhile)."""
+    those files.  ``inputs``: a function giving a digest of anything else it reads (enters its marker's key).  Only an
+    extra that names its outputs runs beside the papers (the papers write the folder meanwhile)."""
     def deco(fn):
         EXTRAS[name] = fn
         EXTRA_OUTPUTS[name] = tuple(outputs)
+        if inputs is not None:
+            EXTRA_INPUTS[name] = inputs
         return fn
     return deco
 
@@ -75,7 +80,8 @@ def _extra_marker(name: str, results_dir: Path, quick: bool, extended: bool = Fa
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     data_id = f"{table}:{table.stat().st_size if table.is_file() else 'absent'}"
-    key = code_key("extra", name, str(quick), str(final_dir(Path(results_dir)).resolve()), data_id, str(extended))
+    more = EXTRA_INPUTS[name]() if name in EXTRA_INPUTS else ""
+    key = code_key("extra", name, str(quick), str(final_dir(Path(results_dir)).resolve()), data_id, str(extended), more)
     return Path(DEFAULT_CACHE).parent / "result-cache" / f"extra-{name}-{key}.done"
 
 
@@ -114,16 +120,23 @@ def _extra_kept(marker: Path, results_dir: Path) -> bool:
                for rel, digest in outputs.items())
 
 
+STALE_TEMP_AGE = 3600.0  # [s] a temp file this old is no live write's (an atomic write lasts seconds)
+
+
 def _remove_stale_temp_files(results_dir: Path) -> None:
     """Temp files of an interrupted earlier run (``.<name>.<random>.tmp``: the atomic writes never
-    give them a final name) are deleted before a new run starts."""
+    give them a final name) are deleted before a new run starts, once older than :data:`STALE_TEMP_AGE`: a younger
+    one may be the live write of another reproduction sharing the cache (the sensitivity study's child runs)."""
     from bench.reproduce.runner import DEFAULT_CACHE
 
+    now = time.time()
     for folder in (Path(results_dir), Path(DEFAULT_CACHE), Path(DEFAULT_CACHE).parent / "result-cache"):
         if folder.is_dir():
             for p in folder.rglob(".*.tmp"):
                 if not p.is_dir():
-                    p.unlink(missing_ok=True)
+                    with contextlib.suppress(OSError):
+                        if now - p.stat().st_mtime > STALE_TEMP_AGE:
+                            p.unlink(missing_ok=True)
                 elif dead_stage(p):  # the stage of a killed `skidbench real --out results/...` (a live one stays)
                     shutil.rmtree(p, ignore_errors=True)
 
@@ -382,12 +395,24 @@ def _extra_gap(results_dir: Path, quick: bool, workers: int = 1) -> None:  # ser
     write_worked_example(Path(results_dir) / "gap")
 
 
-@register_extra("sensitivity", outputs=("sensitivity",))
+def _sensitivity_base() -> str:
+    """The full run the sensitivity study compares with (its claims and runs manifest): their digest, or 'absent'."""
+    from bench.reproduce.sensitivity import base_files
+
+    return ";".join(_sha256(p) if p.is_file() else "absent" for p in base_files())
+
+
+@register_extra("sensitivity", outputs=("sensitivity",), inputs=_sensitivity_base)
 def _extra_sensitivity(results_dir: Path, quick: bool, workers: int = 1, extended: bool = False) -> None:
     """The verdicts a chosen testbed parameter decides (``sensitivity.md``, :mod:`bench.reproduce.sensitivity`):
-    each choice's papers re-run at its declared alternative, against the full run's ``results/claims.json``."""
-    from bench.reproduce.sensitivity import run_sensitivity
+    each choice's papers re-run at its declared alternative, against the full run's ``results/claims.json``
+    (skipped, saying so, when there is no full run to compare with)."""
+    from bench.reproduce.sensitivity import base_files, run_sensitivity
 
+    if missing := [str(p) for p in base_files() if not p.is_file()]:
+        print(f"sensitivity: skipped: no full run to compare with ({', '.join(missing)} missing; `make reproduce` "
+              "first)")
+        return
     doc = run_sensitivity(results_dir, workers=workers)
     n = sum(1 for c in doc["choices"] for r in c["flips"] if not r["target"])
     print(f"sensitivity: {len(doc['choices'])} choices, {n} verdicts that are not calibration targets change")

@@ -15,7 +15,7 @@
       column = "stamp"            # CSV; bags use header stamps (source = "header" | "receive")
       unit = "ms"
       [platform]
-      name = "p3at_pneumatic_20psi"   # scenarios/platforms/<name>.toml: geometry + plausibility
+      name = "p3at_pneumatic_20psi"   # scenarios/platforms/<name>.toml, or a .toml path beside this mapping
       [wheels]                    # -> enc_wl, enc_wr   ([commands] -> cmd_wl, cmd_wr)
       left = "wl"                 # CSV columns
       right = "wr"

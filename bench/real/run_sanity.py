@@ -21,7 +21,7 @@ import dataclasses
 from typing import Any, Sequence
 
 from bench.real.run_windows import windows_from_run
-from bench.real.sanity import FIXES, check_windows, refuse_unit_slips
+from bench.real.sanity import FIXES, RUN_UNIT_COLUMNS, check_windows, refuse_unit_slips
 from bench.run import Run, RunError
 from bench.spec import SpecError
 
@@ -50,7 +50,7 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
         return Run(run.data, {**run.meta, "sanity": {"findings": [], "fixes": [], "skipped": str(e)}})
     r = _wheel_radius(run)
     found = check_windows(w, r)
-    refuse_unit_slips(found, run.where)
+    refuse_unit_slips(found, run.where, RUN_UNIT_COLUMNS)
     sanity: dict[str, Any] = {"findings": [dataclasses.asdict(f) for f in found], "fixes": []}
     if not fixes:
         return Run(run.data, {**run.meta, "sanity": sanity})

@@ -37,9 +37,12 @@ command are what a clock offset between the streams gives.  A skid-steered body 
 turn and never 3 times faster or slower over a whole log (Husky: slope 0.97); wheel speeds logged in rpm read 9.5
 times too fast (slope 0.105), in deg/s 57 times.  A rpm log at a Husky's speeds (under 70 rpm) passes the table
 reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.  A
-slope within 35 % of such a factor, with the two speeds (or rates) correlating at 0.6 or better (Husky 0.84;
-synthetic logs of pivot turns, 3 seeds: 0.02-0.26), is refused as bad input (:func:`refuse_unit_slips`); a log of
-pivot turns, whose path speed is ICP noise, correlates poorly and only warns.
+wheel-speed scale is refused as bad input (:func:`refuse_unit_slips`) when the whole log's slope and the median
+ratio of its straight windows (tread difference under 20 % of the tread speed; at least 5, their IQR under half the
+median; Husky: 0.99 on 75 windows) both lie within 35 % of one such factor: a log of pivot turns,
+whose path speed is ICP noise, has no straight window and only warns, and a log driven at one speed is judged by
+its straight windows, not by a correlation it cannot have.  A gyro slope is taken for a unit when gyro and
+reference rates correlate at 0.6 or better (Husky 0.99), whatever its sign (a flipped gyro in deg/s is both).
 """
 from __future__ import annotations
 
@@ -47,7 +50,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -55,7 +58,8 @@ from bench.real.drive import DriveWindows
 from bench.run import RunError
 from bench.spec import SpecError
 
-__all__ = ["Finding", "check_windows", "apply_fixes", "FIXES", "refuse_unit_slips", "scored_windows"]
+__all__ = ["Finding", "check_windows", "apply_fixes", "FIXES", "refuse_unit_slips", "scored_windows",
+           "RUN_UNIT_COLUMNS"]
 
 GYRO_MIN_SLOPE = 0.5
 IMU_MAX_OFFSET = 0.3  # [m/s^2]
@@ -66,7 +70,9 @@ MAX_LAG = 1.0  # [s] T10 beyond half a DRIVE window: the transitory window canno
 MAX_LEAD = 0.1  # [s] wheel speeds ahead of their command: a clock offset the other way
 MIN_STEP = 1.0  # [rad/s] command steps smaller than this are not timed
 WHEEL_SCALE = (1.0 / 3.0, 3.0)  # reference path speed / tread speed: outside it, a unit or radius error
-UNIT_MIN_R = 0.6  # a slope is read as a unit mistake only when the two speeds correlate at least this well
+UNIT_MIN_R = 0.6  # a gyro slope is read as a unit mistake only when gyro and reference correlate this well
+STRAIGHT_TURN = 0.2  # a window is straight when its tread difference is under this share of its tread speed
+MIN_STRAIGHT, MAX_STRAIGHT_SPREAD = 5, 0.5  # straight windows needed, and their ratios' IQR / median, for a unit
 FIXES = ("flip_gyro", "imu_offset", "drop_stale")
 
 
@@ -112,13 +118,15 @@ def _gyro_sign(w: DriveWindows) -> Finding | None:
     slope = float(x @ y / (x @ x))
     r = float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 and np.std(y) > 0 else math.nan
     values = {"slope": slope, "r": r, "n": float(x.size)}
+    if abs(slope) > 1.0 / GYRO_MIN_SLOPE:  # the gyro reads more than twice the rotation: a unit (and maybe flipped)
+        unit = _unit_slip(1.0 / abs(slope)) if abs(r) >= UNIT_MIN_R else None
+        flipped = ", and the sign flipped" if slope < 0 else ""
+        return Finding("gyro_sign", False, f"imu_gz reads {slope:.3g} times the reference yaw rate (r {r:.2f}): "
+                       + (f"{unit}?" if unit else "the wrong unit?") + flipped, values,
+                       "flip_gyro" if slope < 0 else None, unit=unit)
     if slope < 0:
         return Finding("gyro_sign", False, f"imu_gz against the reference yaw rate: slope {slope:.2f}, r {r:.2f} "
                        f"over {x.size} windows: the gyro sign looks flipped", values, "flip_gyro")
-    if slope > 1.0 / GYRO_MIN_SLOPE:  # the gyro reads more than twice the rotation: a unit
-        unit = _unit_slip(1.0 / slope) if abs(r) >= UNIT_MIN_R else None
-        return Finding("gyro_sign", False, f"imu_gz reads {slope:.3g} times the reference yaw rate (r {r:.2f}): "
-                       + (f"{unit}?" if unit else "the wrong unit?"), values, unit=unit)
     if slope < GYRO_MIN_SLOPE or not (abs(r) >= 0.5):
         return Finding("gyro_sign", False, f"imu_gz hardly follows the reference yaw rate (slope {slope:.2f}, r {r:.2f}): "
                        "the wrong axis or unit?", values)
@@ -259,17 +267,26 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
     ok = np.isfinite(u) & np.isfinite(v)
     if ok.sum() < 3 or not np.any(u[ok]):
         return None
-    u, v = u[ok], v[ok]
+    turn = wheel_radius * np.nanmean(np.abs(w["enc_wr"] - w["enc_wl"]), axis=1) / 2.0
+    u, v, turn = u[ok], v[ok], turn[ok]
     slope = float(u @ v / (u @ u))
     a, b = np.abs(u), np.abs(v)  # magnitudes: v takes u's sign, which alone would correlate them
     r = float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else math.nan
-    values = {"slope": slope, "r": r, "n": float(u.size), "wheel_radius": float(wheel_radius)}
+    # the straight windows (tread difference under 20 % of the mean tread speed, at a quarter of the log's p90 speed
+    # or more): their path speed over tread speed is the scale itself, whatever the log's mix of turns and speeds
+    straight = (a >= 0.25 * np.percentile(a, 90)) & (a > 0) & (turn < STRAIGHT_TURN * a)
+    q = b[straight] / a[straight]
+    q_med = float(np.median(q)) if q.size else math.nan
+    q_spread = float(np.subtract(*np.percentile(q, [75, 25])) / q_med) if q.size and q_med > 0 else math.nan
+    values = {"slope": slope, "r": r, "n": float(u.size), "straight_ratio": q_med, "straight_spread": q_spread,
+              "n_straight": float(q.size), "wheel_radius": float(wheel_radius)}
     text = (f"reference path speed against the tread speed r (w_l + w_r) / 2 with r = {wheel_radius:g} m: slope "
-            f"{slope:.3f}, correlation {r:.2f}, over {u.size} windows")
+            f"{slope:.3f} over {u.size} windows, {q_med:.3f} on the {q.size} straight ones")
     lo, hi = WHEEL_SCALE
     if not lo <= slope <= hi:
-        # a unit only when the speeds follow each other closely (a scale, not the noise of a log of pivot turns)
-        unit = _unit_slip(slope) if r >= UNIT_MIN_R else None
+        # a unit only when the straight windows agree on a scale (not the noise of a log of pivot turns)
+        unit = (_unit_slip(q_med) if q.size >= MIN_STRAIGHT and q_spread <= MAX_STRAIGHT_SPREAD
+                and _unit_slip(q_med) == _unit_slip(slope) else None)
         hint = f"{unit} (slope {UNIT_SLIPS[unit]:.3g})?" if unit else "a unit?"
         return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values,
                        unit=unit)
@@ -279,12 +296,16 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
 UNIT_COLUMNS = {"wheel_scale": "left_wheel_vel_*, right_wheel_vel_*", "gyro_sign": "imu_yaw_*"}
 
 
-def refuse_unit_slips(findings: Sequence[Finding], where: str) -> None:
+RUN_UNIT_COLUMNS = {"wheel_scale": "enc_wl, enc_wr", "gyro_sign": "imu_gz"}  # the same, in a Run (imports)
+
+
+def refuse_unit_slips(findings: Sequence[Finding], where: str, columns: Mapping[str, str] = UNIT_COLUMNS) -> None:
     """A one-line :class:`RunError` for the first finding whose numbers match a unit mistake (its ``unit``): a log in
-    rpm or deg/s is bad input, scored it would blame the robot's model for a factor of 9.5 or 57."""
+    rpm or deg/s is bad input, scored it would blame the robot's model for a factor of 9.5 or 57.  ``columns``: the
+    data's names of the channels each check reads (a DRIVE table's by default; :data:`RUN_UNIT_COLUMNS` for a Run)."""
     for f in findings:
         if f.unit:
-            raise RunError(where, UNIT_COLUMNS.get(f.check, f.check), f"slope {f.values['slope']:.4g}",
+            raise RunError(where, columns.get(f.check, f.check), f"slope {f.values['slope']:.4g}",
                            f"{f.evidence}; convert the column to rad/s")
 
 

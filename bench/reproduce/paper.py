@@ -202,7 +202,9 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     decl = load_paper(name)
     paper = decl["paper"]
     out_dir = results_dir / paper
-    key = code_key(paper, str(quick), decl["_path"], "extended" if extended else "")
+    where = Path(decl["_path"]).resolve()  # the paper's file by its place in the scenario folder, not on this disk
+    where_key = where.relative_to(SCENARIO_DIR).as_posix() if where.is_relative_to(SCENARIO_DIR) else str(where)
+    key = code_key(paper, str(quick), where_key, "extended" if extended else "")
     if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
         log(f"{paper}: unchanged since the last run, results taken from the cache")
         runner.stats["result_cache_hits"] = runner.stats.get("result_cache_hits", 0) + 1

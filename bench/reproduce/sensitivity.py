@@ -37,7 +37,8 @@ from bench.report.io import atomic_write_text, dumps_json
 from bench.schema import read_toml
 from bench.sources import file_sources, parameters
 
-__all__ = ["Edit", "Choice", "choices", "set_value", "papers_using", "run_choice", "flips", "run_sensitivity"]
+__all__ = ["Edit", "Choice", "choices", "set_value", "papers_using", "run_choice", "flips", "run_sensitivity",
+           "base_files"]
 
 FOLDERS = ("platforms", "terrains")
 
@@ -82,7 +83,7 @@ def choices(root: Path = SCENARIO_DIR) -> list[Choice]:
             values = dict(parameters(data))
             for key, src in file_sources(data, path).items():
                 if src.kind == "chosen" and src.alternative is not None:
-                    groups.setdefault(src.claims, []).append(
+                    groups.setdefault(tuple(sorted(src.claims)), []).append(
                         Edit(f"{folder}/{path.name}", key, values[key], src.alternative, src.alternative_ref))
     return [Choice(claims, tuple(edits)) for claims, edits in sorted(groups.items())]
 
@@ -212,13 +213,18 @@ def _markdown(doc: Mapping[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def base_files() -> tuple[Path, Path]:
+    """The full run the study compares with: ``claims.json`` and ``runs_manifest.json`` of the default results."""
+    return default_results() / "claims.json", default_results() / "runs_manifest.json"
+
+
 def run_sensitivity(results_dir: Path, workers: int = 1, base_file: Path | None = None,
                     root: Path = SCENARIO_DIR) -> dict[str, Any]:
     """The study (module docstring): writes ``sensitivity.md|json`` in ``results_dir``; returns the document."""
     from bench.reproduce.provenance import git_commit
     from bench.reproduce.paper import list_papers
 
-    base_file = Path(base_file or default_results() / "claims.json")
+    base_file = Path(base_file or base_files()[0])
     base_doc = json.loads(base_file.read_text())
     base = base_doc["claims"]
     manifest = json.loads((base_file.parent / "runs_manifest.json").read_text())
