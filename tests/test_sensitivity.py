@@ -198,3 +198,29 @@ def test_the_study_skips_without_a_full_run_and_reruns_when_it_changes(tmp_path,
     k1 = CR._extra_marker("sensitivity", out, False, True)
     claims.write_text('{"claims": {"p.a": {"verdict": "holds"}}}')
     assert len({k0, k1, CR._extra_marker("sensitivity", out, False, True)}) == 3
+
+
+def test_the_child_run_reads_the_alternative_and_writes_only_its_own_folder(tmp_path):
+    """run_choice for real (a child `skidbench reproduce` on a copy of the scenario folder): a fake paper's steady
+    speed on the straight drops when the P3-AT's current limit takes a tiny alternative, the copy with no edit gives
+    the speed of the scenario folder itself, and nothing is written under results/."""
+    import shutil
+
+    from bench.paths import default_results
+    from bench.reproduce.sensitivity import run_choice
+    from tests.test_claims import FAKE
+
+    root = tmp_path / "scenarios"
+    shutil.copytree(SCENARIO_DIR, root)
+    (root / "papers" / "p.toml").write_text(FAKE)
+    before = {p: p.stat().st_mtime_ns for p in default_results().glob("*.json")}
+    same = run_choice(Choice(("p.x",), ()), ["p"], 1, root)
+    weak = run_choice(Choice(("p.x",), (Edit("platforms/p3at_pneumatic_20psi.toml", "motor.max_current", 5.5, 0.2,
+                                             "a drive too weak to keep 0.2 m/s"),)), ["p"], 1, root)
+
+    def speed(claims):
+        return float(claims["p.order"]["measured"].split("speed = ")[1].split()[0])
+
+    assert speed(same) == pytest.approx(0.2, rel=0.05)
+    assert speed(weak) < 0.9 * speed(same)
+    assert {p: p.stat().st_mtime_ns for p in default_results().glob("*.json")} == before
