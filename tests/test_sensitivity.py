@@ -169,6 +169,11 @@ def test_the_study_and_the_report_mark_a_verdict_a_choice_decides(tmp_path, monk
     assert "decided by a chosen parameter" in fails and "bot.mass" in fails
     assert "decided by a chosen parameter" not in order
     assert "verdicts decided by a chosen parameter" in report.split("## Per paper")[1]
+    details = (out / "p" / "claims_details.md").read_text()
+    fails_part = details.split('<a id="claim-fails"></a>')[1]
+    order_part = details.split('<a id="claim-order"></a>')[1].split("<a id=")[0]
+    assert "decided by a chosen parameter: at bot.mass = 12.0, bot.motor.max_current = 60.0" in fails_part
+    assert "it holds:" in fails_part and "decided by a chosen parameter" not in order_part
 
 
 def test_the_study_runs_with_extended_only(capsys):

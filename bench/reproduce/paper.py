@@ -208,8 +208,8 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
         log(f"{paper}: unchanged since the last run, results taken from the cache")
         runner.stats["result_cache_hits"] = runner.stats.get("result_cache_hits", 0) + 1
-        write_paper(hit, out_dir)
         _copy_files(hit, out_dir)
+        write_paper(hit, out_dir)  # after: its files may read what changed since (the sensitivity study's marks)
         return hit
     ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick, extended=extended)
     before = _file_stamps(out_dir)

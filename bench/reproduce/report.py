@@ -171,8 +171,39 @@ def _claims_md(res: PaperResult) -> str:
     return "\n".join(_claims_sections(res, DETAILS)) + "\n"
 
 
-def claims_details(res: PaperResult) -> str:
-    """Every claim in full: quote, numbers, the result that would fail it, cause, calibration, the whole note."""
+def _sensitivity_doc(results_dir: Path) -> dict[str, Any]:
+    """The last extended run's sensitivity study (``<results_dir>/extended/sensitivity.json``), {} when absent."""
+    try:
+        doc = json.loads((Path(results_dir) / "extended" / "sensitivity.json").read_text())
+        return doc if isinstance(doc, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def decided_lines(results_dir: Path) -> dict[str, list[str]]:
+    """{claim: a line per chosen parameter whose alternative changes its verdict} from the last extended run's
+    sensitivity study (``<results_dir>/extended/sensitivity.json``; none when it has not run), for the claims that are
+    not calibration targets: what the verdict becomes and the numbers it is computed from."""
+    doc = _sensitivity_doc(results_dir)
+    try:
+        out: dict[str, list[str]] = {}
+        for c in doc["choices"]:
+            at = ", ".join(f"{e['name']} = {e['alternative']!r}" for e in c["edits"])
+            for r in c["flips"]:
+                if not r["target"]:
+                    out.setdefault(r["claim"], []).append(
+                        f"- decided by a chosen parameter: at {at} (chosen for {', '.join(c['claims'])}) it "
+                        f"{r['alternative']}: {r['alternative_measured']} ([the sensitivity study](../"
+                        f"{SENSITIVITY_LINK}), commit `{str(doc.get('commit', '?'))[:12]}`)")
+        return out
+    except (KeyError, TypeError):
+        return {}
+
+
+def claims_details(res: PaperResult, decided: Mapping[str, list[str]] | None = None) -> str:
+    """Every claim in full: quote, numbers, the result that would fail it, cause, calibration, the whole note;
+    ``decided``: :func:`decided_lines`."""
+    decided = decided or {}
     out = [f"# {res.paper}: claims in detail", "", "Back to the [paper's summary](README.md).", ""]
     for c in res.claims:
         scope = "check beyond the paper" if c.get("scope", "paper") == "beyond" else (
@@ -190,6 +221,7 @@ def claims_details(res: PaperResult) -> str:
             out.append(f"- cause ({c['cause']['kind']}): {c['cause']['text']}")
         for p in c.get("calibration", []):
             out.append(f"- calibration target: {p['parameter']} ({p['file']}) was chosen for it: {p['ref']}")
+        out += decided.get(f"{res.paper}.{c['id']}", [])
         if c.get("why"):
             out += ["", c["why"].strip()]
         out.append("")
@@ -232,7 +264,7 @@ def write_paper(res: PaperResult, out_dir: Path) -> None:
         atomic_write_text(out_dir / f"{tab['id']}.md", _table_md(tab, res.notes))
         atomic_write_text(out_dir / f"{tab['id']}.csv", _table_csv(tab))
     atomic_write_text(out_dir / "claims.md", _claims_md(res))
-    atomic_write_text(out_dir / DETAILS, claims_details(res))
+    atomic_write_text(out_dir / DETAILS, claims_details(res, decided_lines(Path(out_dir).parent)))
     atomic_write_text(out_dir / "README.md", paper_markdown(res, link_prefix="../"))
 
 
@@ -316,15 +348,15 @@ def _sensitivity(results_dir: Path) -> tuple[dict[str, list[str]], set[str], str
     """From the last extended run's sensitivity study (``results/extended/sensitivity.json``,
     :mod:`bench.reproduce.sensitivity`): {claim: the chosen parameters whose alternative changes its verdict} for the
     claims that are not calibration targets, the papers it re-ran and its commit; None when it has not run."""
+    doc = _sensitivity_doc(results_dir)
     try:
-        doc = json.loads((Path(results_dir) / "extended" / "sensitivity.json").read_text())
         decided: dict[str, list[str]] = {}
         for c in doc["choices"]:
             for r in c["flips"]:
                 if not r["target"]:
                     decided.setdefault(r["claim"], []).extend(e["name"] for e in c["edits"])
         return decided, {p for c in doc["choices"] for p in c["papers"]}, str(doc.get("commit", "?"))[:12]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (KeyError, TypeError):
         return None
 
 
