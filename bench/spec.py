@@ -460,24 +460,28 @@ def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str,
             given or {})
 
 
-def _known(name_or_path: str | Path, folder: Path, what: str) -> Path:
+def registered(what: str, root: Path = SCENARIO_DIR) -> list[str]:
+    """The names of the ``what`` ("platform" or "terrain") files of the scenario folder."""
+    return list_scenarios(root / f"{what}s")
+
+
+def _known(name_or_path: str | Path, root: Path, what: str) -> Path:
     """The file of a registered name or a path; an unknown bare name is a one-line error listing the known ones."""
-    path = _resolve(name_or_path, folder)
+    path = _resolve(name_or_path, root / f"{what}s")
     p = Path(name_or_path)
     if not path.exists() and p.suffix != ".toml" and len(p.parts) == 1:
-        known = sorted(f.stem for f in folder.glob("*.toml"))
         raise SpecError(f"<{what} name>", what, str(name_or_path),
-                        f"unknown {what}; known: {', '.join(known)} (or the path of a .toml file)")
+                        f"unknown {what}; known: {', '.join(registered(what, root))} (or the path of a .toml file)")
     return path
 
 
 def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
-    path = _known(name_or_path, root / "platforms", "platform")
+    path = _known(name_or_path, root, "platform")
     return build(Platform, _read_part(path, Platform), path)
 
 
 def load_terrain(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Terrain:
-    path = _known(name_or_path, root / "terrains", "terrain")
+    path = _known(name_or_path, root, "terrain")
     data = _read_part(path, Terrain)
     data.pop("dt_max", None)  # a requirement on the scenario's step (load_scenario), not a terrain field
     return build(Terrain, data, path)
@@ -590,6 +594,6 @@ __all__ = [
     "SpecError", "MotorSpec", "PidSpec", "EncoderSpec", "ImuSpec", "GnssSpec", "ReferenceSpec",
     "SensorSpec", "Platform", "Terrain", "FrictionPatch", "Segment", "CommandSpec", "Scenario", "Source", "Sources",
     "build", "load_platform", "load_terrain", "load_scenario", "scenario_from_dict", "replace",
-    "to_dict", "list_scenarios", "parse_override", "scenario_data",
+    "to_dict", "list_scenarios", "registered", "parse_override", "scenario_data",
 ]
 _ = types  # keep import for type evaluation of PEP 604 unions on 3.11

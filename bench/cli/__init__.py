@@ -89,6 +89,13 @@ def count(minimum: int) -> Callable[[str], int]:
     return parse
 
 
+def unwritable_folder(first: Path) -> Path | None:
+    """The nearest existing one of ``first`` and its parents when it is not a folder this user can write into, else
+    None: where an output that would be written at or under ``first`` cannot go."""
+    folder = next((p for p in [first.absolute(), *first.absolute().parents] if p.exists()), None)
+    return folder if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)) else None
+
+
 def output_files(a: argparse.Namespace, *names: str) -> None:
     """Each output file ``--NAME`` given on the command line is a file name, not a folder, in a folder this user can
     write (the nearest existing one): checked before anything is computed or written, so that one bad name leaves no
@@ -100,8 +107,7 @@ def output_files(a: argparse.Namespace, *names: str) -> None:
         flag = f"--{name.replace('_', '-')}"
         if Path(path).is_dir():
             raise SpecError("<command line>", flag, str(path), "a file name, not a folder")
-        folder = next((p for p in Path(path).absolute().parents if p.exists()), None)  # the nearest that exists
-        if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)):
+        if (folder := unwritable_folder(Path(path).parent)) is not None:
             raise SpecError("<command line>", flag, str(path), f"cannot be written: {folder} is not a writable folder")
 
 

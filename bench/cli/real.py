@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from bench.cli import command, count, output_files
+from bench.cli import command, count, output_files, unwritable_folder
 from bench.cli.formats import print_sanity
 from bench.schema import SpecError
 
@@ -135,8 +135,7 @@ def staged_folder(out: Path) -> Iterator[Path]:
     was: removed again if this call made it."""
     if out.exists() and not out.is_dir():
         raise SpecError("<command line>", "--out", str(out), "a folder, not a file")
-    folder = next((p for p in [out.absolute(), *out.absolute().parents] if p.exists()), None)
-    if folder is not None and not (folder.is_dir() and os.access(folder, os.W_OK | os.X_OK)):
+    if (folder := unwritable_folder(out)) is not None:
         raise SpecError("<command line>", "--out", str(out), f"cannot be written: {folder} is not a writable folder")
     made = not out.exists()
     out.mkdir(parents=True, exist_ok=True)

@@ -25,7 +25,7 @@ def _list_args(p: argparse.ArgumentParser) -> None:
 
 def _list(a: argparse.Namespace) -> int:
     from bench import registry
-    from bench.spec import SCENARIO_DIR, list_scenarios
+    from bench.spec import list_scenarios, registered
 
     methods = []
     for name, ep in registry.discover().items():
@@ -36,8 +36,8 @@ def _list(a: argparse.Namespace) -> int:
             methods.append({"name": name, "paper": f"(failed to load: {exc})", "requires": []})
     out = {
         "scenarios": list_scenarios(),
-        "platforms": sorted(p.stem for p in (SCENARIO_DIR / "platforms").glob("*.toml")),
-        "terrains": sorted(p.stem for p in (SCENARIO_DIR / "terrains").glob("*.toml")),
+        "platforms": registered("platform"),
+        "terrains": registered("terrain"),
         "methods": methods,
     }
     if a.json:

@@ -189,9 +189,9 @@ def _platform(mapping: ImportMapping) -> Platform | None:
     except SpecError as exc:
         if exc.field not in ("<file>", "platform"):  # a missing file, an unknown name: named after the mapping
             raise
-        from bench.spec import SCENARIO_DIR
+        from bench.spec import registered
 
-        known = sorted(p.stem for p in (SCENARIO_DIR / "platforms").glob("*.toml"))
+        known = registered("platform")
         raise SpecError(mapping.source_file or "<mapping>", "platform.name", name,
                         f"unknown platform; known: {known}") from None
 

@@ -54,13 +54,14 @@ def kinematic_platform(spec: str | Path) -> dict[str, Any]:
     doc = read_toml(path, "platform file")
     if isinstance(doc.get("platform"), dict):
         doc = doc["platform"]
-    known = {f.name for f in dataclasses.fields(Platform)} | {"name", "source", "sources"}
+    lengths = {r + s for r in REQUIRED for s in _LENGTH_UNITS}  # wheel_radius, wheel_radius_cm, ..., track_mm
+    known = {f.name for f in dataclasses.fields(Platform)} | {"name", "source", "sources"} | lengths
     for k, v in doc.items():  # a misspelt key would be silently ignored: refused, with the nearest known one
-        if k not in known and not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS):
-            near = difflib.get_close_matches(k, sorted(known | {r + s for r in REQUIRED for s in _LENGTH_UNITS}), 1)
+        if k not in known:
+            near = difflib.get_close_matches(k, sorted(known), 1)
             raise SpecError(path, k, v, "unknown key (a platform file has name, wheel_radius, track and the testbed "
                             "platform's fields)" + (f"; did you mean {near[0]!r}?" if near else ""))
-    out = {k: v for k, v in doc.items() if not any(k == r + s for r in REQUIRED for s in _LENGTH_UNITS)}
+    out = {k: v for k, v in doc.items() if k not in lengths}
     for key in REQUIRED:
         out[key] = _length(doc, key, path)
     name = out.get("name", path.stem)

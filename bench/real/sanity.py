@@ -25,7 +25,7 @@ check                  evidence                                                 
 ``wheel_scale``        slope (least squares through the origin) of the reference's     slope outside 1/3..3
                        path speed (ICP path length over the window, signed as the      (0.105: rpm as rad/s;
                        treads) against the tread speed r (w_l + w_r) / 2, when the     0.017: deg/s; or the
-                       wheel radius r is known, and their correlation                   radius); no fix
+                       wheel radius r is known; and its median over straight windows    radius); no fix
 =====================  ================================================================  =====================
 
 Thresholds are physical bounds, not fitted to the Husky table: a 0.3 m/s^2 accelerometer offset is 1.7 deg of
@@ -270,23 +270,22 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
     turn = wheel_radius * np.nanmean(np.abs(w["enc_wr"] - w["enc_wl"]), axis=1) / 2.0
     u, v, turn = u[ok], v[ok], turn[ok]
     slope = float(u @ v / (u @ u))
-    a, b = np.abs(u), np.abs(v)  # magnitudes: v takes u's sign, which alone would correlate them
-    r = float(np.corrcoef(a, b)[0, 1]) if np.std(a) > 0 and np.std(b) > 0 else math.nan
+    a, b = np.abs(u), np.abs(v)
     # the straight windows (tread difference under 20 % of the mean tread speed, at a quarter of the log's p90 speed
     # or more): their path speed over tread speed is the scale itself, whatever the log's mix of turns and speeds
     straight = (a >= 0.25 * np.percentile(a, 90)) & (a > 0) & (turn < STRAIGHT_TURN * a)
     q = b[straight] / a[straight]
     q_med = float(np.median(q)) if q.size else math.nan
     q_spread = float(np.subtract(*np.percentile(q, [75, 25])) / q_med) if q.size and q_med > 0 else math.nan
-    values = {"slope": slope, "r": r, "n": float(u.size), "straight_ratio": q_med, "straight_spread": q_spread,
+    values = {"slope": slope, "n": float(u.size), "straight_ratio": q_med, "straight_spread": q_spread,
               "n_straight": float(q.size), "wheel_radius": float(wheel_radius)}
     text = (f"reference path speed against the tread speed r (w_l + w_r) / 2 with r = {wheel_radius:g} m: slope "
             f"{slope:.3f} over {u.size} windows, {q_med:.3f} on the {q.size} straight ones")
     lo, hi = WHEEL_SCALE
     if not lo <= slope <= hi:
         # a unit only when the straight windows agree on a scale (not the noise of a log of pivot turns)
-        unit = (_unit_slip(q_med) if q.size >= MIN_STRAIGHT and q_spread <= MAX_STRAIGHT_SPREAD
-                and _unit_slip(q_med) == _unit_slip(slope) else None)
+        unit = _unit_slip(q_med) if q.size >= MIN_STRAIGHT and q_spread <= MAX_STRAIGHT_SPREAD else None
+        unit = unit if unit == _unit_slip(slope) else None  # the whole log's slope names the same unit
         hint = f"{unit} (slope {UNIT_SLIPS[unit]:.3g})?" if unit else "a unit?"
         return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values,
                        unit=unit)

@@ -143,6 +143,12 @@ def _labels(ids: list[str]) -> list[str]:
     return list(ids)
 
 
+def _margin(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> float:
+    """The claim's ``margin`` metric (a half-width of an interval), 0 without one; a negative one, a defect of its
+    metric, is taken as 0 and never widens the claim."""
+    return max(_number(metrics.get(claim["margin"])), 0.0) if "margin" in claim else 0.0
+
+
 def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tuple[bool | None, str]:
     """(holds, measured-numbers text). ``None`` when a metric is missing or NaN."""
     def get(mid: str) -> float | None:
@@ -157,7 +163,7 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
     if kind == "ordering":  # a < b < ...; with "margin" (a metric, e.g. 2 standard errors): a + margin < b ...
         ids = claim["metrics"]
         vals = [get(m) for m in ids]
-        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
+        margin = _margin(claim, metrics)
         ok = all(a + margin < b for a, b in zip(vals, vals[1:]))
         text = " < ".join(f"{name} = {_fmt(v)}" for name, v in zip(_labels(list(ids)), vals))
         if "margin" in claim:
@@ -169,7 +175,7 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
             return None, f"{claim['den'].split('.')[-1]} = 0: no ratio"
         r = n / d
         op, val = claim.get("op", "<="), float(claim["value"])
-        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
+        margin = _margin(claim, metrics)
         past = r + margin if op in ("<", "<=") else r - margin  # the ratio's interval end nearest the value
         ok = {"<": past < val, "<=": past <= val, ">": past > val, ">=": past >= val}[op]
         num, den = _labels([claim["num"], claim["den"]])
@@ -185,7 +191,7 @@ def evaluate_claim(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> tu
         v = get(claim["metric"])
         target = float(claim["value"])
         tol, tol_text = _within_tolerance(claim)
-        margin = max(get(claim["margin"]), 0.0) if "margin" in claim else 0.0  # a half-width is never negative
+        margin = _margin(claim, metrics)
         by = f" (its interval ± {claim['margin'].split('.')[-1]} = {_fmt(margin)} must lie inside the band)" \
             if "margin" in claim else ""
         return abs(v - target) + margin <= tol, f"{_fmt(v)} vs {target} {tol_text}{by}"
@@ -204,7 +210,7 @@ def refuted(claim: Mapping[str, Any], metrics: Mapping[str, float]) -> bool | No
     holds, _ = evaluate_claim(claim, metrics)
     if holds is not False or "margin" not in claim or claim["kind"] not in ("ordering", "ratio", "within"):
         return None
-    m = max(_number(metrics.get(claim["margin"])), 0.0)
+    m = _margin(claim, metrics)
     if claim["kind"] == "within":  # the whole interval outside the band
         tol, _ = _within_tolerance(claim)
         return abs(_number(metrics.get(claim["metric"])) - float(claim["value"])) - m > tol

@@ -180,6 +180,12 @@ def _sensitivity_doc(results_dir: Path) -> dict[str, Any]:
         return {}
 
 
+def _decided(doc: Mapping[str, Any]) -> list[tuple[Mapping[str, Any], Mapping[str, Any]]]:
+    """(choice, flip) of each verdict a choice changes that is not a calibration target (KeyError or TypeError on a
+    malformed document)."""
+    return [(c, r) for c in doc["choices"] for r in c["flips"] if not r["target"]]
+
+
 def decided_lines(results_dir: Path) -> dict[str, list[str]]:
     """{claim: a line per chosen parameter whose alternative changes its verdict} from the last extended run's
     sensitivity study (``<results_dir>/extended/sensitivity.json``; none when it has not run), for the claims that are
@@ -187,14 +193,12 @@ def decided_lines(results_dir: Path) -> dict[str, list[str]]:
     doc = _sensitivity_doc(results_dir)
     try:
         out: dict[str, list[str]] = {}
-        for c in doc["choices"]:
+        for c, r in _decided(doc):
             at = ", ".join(f"{e['name']} = {e['alternative']!r}" for e in c["edits"])
-            for r in c["flips"]:
-                if not r["target"]:
-                    out.setdefault(r["claim"], []).append(
-                        f"- decided by a chosen parameter: at {at} (chosen for {', '.join(c['claims'])}) it "
-                        f"{r['alternative']}: {r['alternative_measured']} ([the sensitivity study](../"
-                        f"{SENSITIVITY_LINK}), commit `{str(doc.get('commit', '?'))[:12]}`)")
+            out.setdefault(r["claim"], []).append(
+                f"- decided by a chosen parameter: at {at} (chosen for {', '.join(c['claims'])}) it "
+                f"{r['alternative']}: {r['alternative_measured']} ([the sensitivity study](../"
+                f"{SENSITIVITY_LINK}), commit `{str(doc.get('commit', '?'))[:12]}`)")
         return out
     except (KeyError, TypeError):
         return {}
@@ -351,10 +355,8 @@ def _sensitivity(results_dir: Path) -> tuple[dict[str, list[str]], set[str], str
     doc = _sensitivity_doc(results_dir)
     try:
         decided: dict[str, list[str]] = {}
-        for c in doc["choices"]:
-            for r in c["flips"]:
-                if not r["target"]:
-                    decided.setdefault(r["claim"], []).extend(e["name"] for e in c["edits"])
+        for c, r in _decided(doc):
+            decided.setdefault(r["claim"], []).extend(e["name"] for e in c["edits"])
         return decided, {p for c in doc["choices"] for p in c["papers"]}, str(doc.get("commit", "?"))[:12]
     except (KeyError, TypeError):
         return None
