@@ -32,7 +32,7 @@ def results(tmp_path: Path) -> Path:
 
 
 def _siblings(d: Path) -> list[str]:
-    return sorted(p.name for p in d.parent.iterdir() if p.name.startswith(f".{d.name}.") and not p.name.endswith(".lock"))
+    return sorted(p.name for p in d.parent.iterdir() if p.name.startswith(f".{d.name}."))  # a lock file too
 
 
 def test_a_finished_run_replaces_the_set_and_keeps_what_it_did_not_rewrite(results):
@@ -78,7 +78,7 @@ def test_sigkill_during_the_run_leaves_the_previous_set_and_the_next_run_cleans_
     p = subprocess.run([sys.executable, str(script), str(results)], env={**os.environ, "PYTHONPATH": os.getcwd()})
     assert p.returncode == -signal.SIGKILL
     assert _tree(results) == before
-    assert _siblings(results) == [".results.staging"]  # the killed run's half-written set, not published
+    assert _siblings(results) == [".results.lock", ".results.staging"]  # the killed run's set, not published
     with staged(results) as stage:  # the next run: the lock of the dead process is free, its staging is removed
         assert json.loads((stage / "metrics.json").read_text()) == {"run": 1}
     assert _tree(results) == before and _siblings(results) == []
@@ -114,6 +114,33 @@ def test_two_runs_cannot_write_one_results_tree(results, monkeypatch):
     with staged(results / "quick") as stage:  # free again
         (stage / "x.md").write_text("q")
     assert (results / "quick" / "x.md").read_text() == "q"
+
+
+def test_a_run_removes_its_lock_file_and_never_trusts_a_removed_one(results, monkeypatch):
+    """No lock file is left beside the results folder; a run that opened the file just before the run holding it
+    removed it (the race a removed lock file opens) locks the file then at the path, never the removed one."""
+    import fcntl
+
+    from bench.reproduce import publish
+
+    lock = results.parent / f".{results.name}.lock"
+    monkeypatch.setattr(publish, "default_results", lambda: results)
+    with staged(results):
+        assert lock.read_text() == f"{os.getpid()}\n"
+        late = open(lock, "a+")  # opened while the first run holds it
+    assert not lock.exists() and _siblings(results) == []
+    fcntl.flock(late, fcntl.LOCK_EX | fcntl.LOCK_NB)  # the removed file is free to lock: it must not count
+    opened = iter([late])
+    monkeypatch.setattr(publish, "open", lambda *a, **k: next(opened, None) or open(*a, **k), raising=False)
+    fh = publish._open_locked(lock, results)
+    try:
+        assert fh is not late and os.path.samestat(os.stat(lock), os.fstat(fh.fileno()))
+        with pytest.raises(ResultsBusy):  # and it excludes a third run
+            with staged(results):
+                pass
+    finally:
+        fh.close()
+        late.close()
 
 
 def test_history_of_a_staged_quick_run_is_the_projects(results, monkeypatch):

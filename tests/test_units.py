@@ -72,6 +72,23 @@ def test_a_unit_mistake_is_found_where_a_correlation_could_not(clean, tmp_path, 
     assert ("rpm" if case == "one_speed_rpm" else "deg/s") + " given as rad/s" in str(exc.value)
 
 
+def test_motor_shaft_speeds_are_refused_naming_the_gearbox_beside_rpm(clean, tmp_path):
+    """Wheel speeds logged at the motor shaft through a 10:1 gearbox read 10 times too fast, a slope (0.1) rpm's 0.105
+    also gives: refused as rpm is, the message naming the gearbox whose ratio the straight windows give (1 / 0.1)."""
+    from bench.real.sanity import scored_windows
+
+    df = clean[1].copy()
+    for b in ("left_wheel_vel", "right_wheel_vel"):
+        df[_cols(df, b)] *= 10.0
+    path = tmp_path / "motor_shaft.parquet"
+    df.to_parquet(path)
+    with pytest.raises(RunError) as exc:
+        scored_windows(path, R)
+    msg = str(exc.value)
+    ratio = float(re.search(r"through a ([0-9.]+):1 gearbox", msg).group(1))
+    assert "rpm given as rad/s" in msg and ratio == pytest.approx(10.0, abs=0.3), msg
+
+
 def test_a_run_in_deg_per_s_is_refused_by_the_run_check_naming_its_channel():
     """The run imports' check (bench.real.run_sanity.check_run) refuses a gyro in deg/s and names the Run's channel
     (imu_gz), not a DRIVE column."""

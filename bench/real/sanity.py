@@ -35,7 +35,8 @@ not flagged); the Husky's powertrain answers a step with T10 0.43 s and T50 0.75
 the robot's, reported, not a defect), while a T10 beyond 1 s (half a DRIVE window) or a wheel speed ahead of its
 command are what a clock offset between the streams gives.  A skid-steered body moves slower than its treads in a
 turn and never 3 times faster or slower over a whole log (Husky: slope 0.97); wheel speeds logged in rpm read 9.5
-times too fast (slope 0.105), in deg/s 57 times.  A rpm log at a Husky's speeds (under 70 rpm) passes the table
+times too fast (slope 0.105), in deg/s 57 times (motor-shaft speeds through a 7-13:1 gearbox give rpm's slope: the
+message names both).  A rpm log at a Husky's speeds (under 70 rpm) passes the table
 reader's 300 rad/s bound, and a kinematic platform TOML gives no motor to bound it by: this check catches it.  A
 wheel-speed scale is refused as bad input (:func:`refuse_unit_slips`) when the whole log's slope and the median
 ratio of its straight windows (tread difference under 20 % of the tread speed; at least 5, their IQR under half the
@@ -287,6 +288,8 @@ def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
         unit = _unit_slip(q_med) if q.size >= MIN_STRAIGHT and q_spread <= MAX_STRAIGHT_SPREAD else None
         unit = unit if unit == _unit_slip(slope) else None  # the whole log's slope names the same unit
         hint = f"{unit} (slope {UNIT_SLIPS[unit]:.3g})?" if unit else "a unit?"
+        if unit and unit.startswith("rpm"):  # a gear ratio of 7-13 gives the same slope
+            hint = f"{hint} or motor-shaft speeds through a {1 / q_med:.1f}:1 gearbox?"
         return Finding("wheel_scale", False, f"{text}, outside {lo:.2f}..{hi:g}: {hint} or the wheel radius", values,
                        unit=unit)
     return Finding("wheel_scale", True, text, values)
@@ -305,7 +308,7 @@ def refuse_unit_slips(findings: Sequence[Finding], where: str, columns: Mapping[
     for f in findings:
         if f.unit:
             raise RunError(where, columns.get(f.check, f.check), f"slope {f.values['slope']:.4g}",
-                           f"{f.evidence}; convert the column to rad/s")
+                           f"{f.evidence}; convert the column to the wheel's rad/s")
 
 
 def scored_windows(data_path: str | Path, wheel_radius: float | None) -> tuple[DriveWindows, DriveWindows,

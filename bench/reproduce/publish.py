@@ -13,7 +13,9 @@ Without it, a kill between two writes left a mix of two runs: a paper's tables w
 removed at the next start.
 
 A lock (``flock`` on ``.<name>.lock`` beside the folder that holds the project's results) keeps two reproduces
-from writing one results tree at once: the second stops with a one-line error.  ``results/quick/`` and
+from writing one results tree at once: the second stops with a one-line error.  The run removes the lock file
+before it releases it (a run that opened the removed file finds it gone once it holds it, and opens the path again),
+so no lock file is left beside the folder.  ``results/quick/`` and
 ``results/extended/`` lock ``results/`` too, since publishing ``results/`` moves them.
 
 A staging folder knows where it will be published (:func:`final_dir`), so what depends on the results folder's
@@ -28,7 +30,7 @@ import os
 import shutil
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
+from typing import IO, Iterator
 
 from bench.paths import default_results
 from bench.spec import SpecError
@@ -92,29 +94,42 @@ def _ignore(folder: str, names: list[str]) -> set[str]:
         {_MARK} & set(names))
 
 
-@contextmanager
-def _locked(final: Path) -> Iterator[None]:
-    root = _lock_root(final)
-    root.parent.mkdir(parents=True, exist_ok=True)
-    lock = root.parent / f".{root.name}.lock"
-    with open(lock, "a+") as fh:
+def _open_locked(lock: Path, root: Path) -> IO[str]:
+    """``lock`` opened and ``flock``ed, once the file locked is the one at that path: a run ending removes its lock
+    file while it still holds it, so one that opened that file meanwhile locks a removed file and opens it again."""
+    while True:
+        fh = open(lock, "a+")
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             fh.seek(0)
             holder = fh.read().strip() or "?"
+            fh.close()
             raise ResultsBusy(lock, "<lock>", holder, f"another skidbench reproduce (pid {holder}) is writing "
                               f"{root}; wait for it to finish") from None
-        fh.seek(0)
-        fh.truncate()
+        try:
+            same = os.path.samestat(os.stat(lock), os.fstat(fh.fileno()))
+        except FileNotFoundError:
+            same = False
+        if same:
+            return fh
+        fh.close()  # the file was removed (and maybe made again) after this run opened it: lock the current one
+
+
+@contextmanager
+def _locked(final: Path) -> Iterator[None]:
+    root = _lock_root(final)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    lock = root.parent / f".{root.name}.lock"
+    fh = _open_locked(lock, root)
+    try:
+        fh.truncate(0)  # a killed run's pid may be in it
         fh.write(f"{os.getpid()}\n")
         fh.flush()
-        try:
-            yield
-        finally:
-            fh.seek(0)
-            fh.truncate()
-            fcntl.flock(fh, fcntl.LOCK_UN)
+        yield
+    finally:
+        lock.unlink(missing_ok=True)  # removed while held: nothing is left beside the results folder
+        fh.close()  # closing releases the flock
 
 
 @contextmanager
