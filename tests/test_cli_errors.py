@@ -34,6 +34,10 @@ def _raising(exc: BaseException):
      "error: m: refusing to estimate on run 'r', which it was calibrated on"),
     (MetricError("no reference sample of 'truth' inside the time span of 'm'"), 2,
      "error: no reference sample of 'truth' inside the time span of 'm'"),
+    (FileNotFoundError(2, "No such file or directory", "runs/a.parquet"), 2,
+     "error: runs/a.parquet: No such file or directory"),  # the user's path: bad input
+    (OSError(28, "No space left on device", "results/REPORT.md"), 1,
+     "error: results/REPORT.md: No space left on device"),  # the machine's failure: one line, not exit 2
 ])
 def test_interrupts_and_scoring_errors_end_in_one_line(monkeypatch, capsys, exc, code, line) -> None:
     cli.build_parser()  # registers the commands

@@ -17,6 +17,7 @@ in :mod:`bench.cli.real`), :mod:`bench.cli.formats` (import-drive, export-tum, i
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 import warnings
@@ -148,6 +149,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # the interpreter's final flush goes nowhere
         return 1
     except Exception as exc:
+        if isinstance(exc, OSError) and exc.errno in MACHINE_ERRNOS:  # the machine's failure, not the input's
+            _replay(held, show)
+            print(f"error: {_one_line(exc)}", file=sys.stderr)
+            return 1
         if _input_error(exc):
             print(f"error: {_one_line(exc)}", file=sys.stderr)
             return 2
@@ -175,6 +180,9 @@ def _stdout_gone() -> bool:
 def _replay(held: list[tuple], show: Callable[..., None]) -> None:
     for w in held:
         show(*w)
+
+
+MACHINE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.ENOMEM})  # one line, but exit 1: not bad input
 
 
 def _one_line(exc: Exception) -> str:
