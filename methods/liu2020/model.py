@@ -64,8 +64,13 @@ def liu_hx(sig: np.ndarray) -> np.ndarray:
 
 def _gnss_block(run: Run) -> np.ndarray:
     """(T, 6) block 1 of (32): gnss x, y, yaw, body v_x, v_y (GNSS world velocity rotated by the
-    GNSS heading, as (32) rotates by phi_N) and the gyro yaw rate; NaN where there is no sample."""
+    GNSS heading, as (32) rotates by phi_N) and the gyro yaw rate; NaN where there is no sample.
+    Without a position fix the heading row goes too (Sec. IV-C, after (32): "the dimension of the measurement
+    vector will descend to 9x1 with the position readings deleted"), while a heading sample still rotates the
+    GNSS velocity: rows v_x, v_y and the gyro stay.  A fix that is missing whole (every channel NaN) drops
+    the same rows either way."""
     gx, gy, gyaw = run["gnss_x"], run["gnss_y"], run["gnss_yaw"]
     gvx, gvy = run["gnss_vx"], run["gnss_vy"]
     c, s = np.cos(gyaw), np.sin(gyaw)  # NaN yaw -> NaN body velocity (dropped)
-    return np.column_stack((gx, gy, _wrap(gyaw), c * gvx + s * gvy, -s * gvx + c * gvy, run["imu_gz"]))
+    yaw_row = np.where(np.isfinite(gx) & np.isfinite(gy), _wrap(gyaw), np.nan)
+    return np.column_stack((gx, gy, yaw_row, c * gvx + s * gvy, -s * gvx + c * gvy, run["imu_gz"]))

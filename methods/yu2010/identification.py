@@ -84,6 +84,7 @@ def identify_from_speeds(wl: ArrayLike, wr: ArrayLike, tau_l_meas: ArrayLike, ta
         mr = side_torque(Fr, wr, params, mu_sa=mu_sa, mu_op=mu_op)
         return np.concatenate([ml - tl, mr - tr])  # Delta tau_lRes, Delta tau_rRes of eq. (28)
 
+    # bounds are ours (the paper states none): mu <= 3, where a fit along a flat valley (Table I, N = 2) stops
     z0, lo, hi, xs = np.array([1.0, sa0, op0]), [1e-3, 1e-3, 1e-3], [1e3, 3.0, 3.0], np.array([0.3, 0.1, 0.1])
     if not fit_K:
         z0, lo, hi, xs = z0[1:], lo[1:], hi[1:], xs[1:]

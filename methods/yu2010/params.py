@@ -34,8 +34,8 @@ class YuParams:
     motor [W], |tau_m w_m| <= P_max (the "motor power limitations" of Yu's abstract and Sec. V-B;
     Table II gives no value, so 0 = no limit unless the platform's ``motor.max_power`` sets it).
     Motor controller (eq. (27)): ``PWM`` duty limit, ``V_CC`` supply, ``U_loss`` controller loss;
-    ``vmax_current_term``: subtract (27)'s current term R_a |I| from the limit (see
-    :mod:`methods.yu2010.simulate`).
+    ``vmax_current_term``: also subtract (27)'s current term R_a |I| from the limit, the reading that
+    counts the armature drop twice (off by default; see :mod:`methods.yu2010.simulate`).
     Terrain: ``alpha`` expansion factor of eq. (1), ``K`` shear deformation modulus [m],
     ``mu_roll`` rolling resistance coefficient, ``mu_sa``/``mu_op`` friction when the motor drives
     / brakes (Sec. V-A).  ``slope`` ramp angle beta [rad] (eq. (24)) active after the vehicle has
@@ -76,7 +76,7 @@ class YuParams:
     PWM: float = 0.95
     V_CC: float = 12.0
     U_loss: float = 0.0
-    vmax_current_term: bool = True
+    vmax_current_term: bool = False  # (27)'s current term is (26)'s own armature drop: counted once
     # terrain: vinyl lab surface (Table II)
     alpha: float = 1.5
     K: float = 0.00054

@@ -7,14 +7,18 @@ torque-speed line (26), tau_m = (K_T/R_a)(V - K_B w_m), w_m = g_r w, with the cu
 "motor power limitations" of Yu's abstract, value from the platform's motor) -> side torque
 n g_r tau_m -> dynamics (25): M q_ddot + C(q_dot) + G(q) = tau.
 
-Eq. (27) (simplification, documented): V_m,max = PWM (V_CC - U_loss) - (dn/dtau) K_T I_m / K_n.
-With the motor's speed-torque gradient dn/dtau = R_a/(K_T K_B) and K_n = 1/K_B the current term
-is R_a I_m.  Using the same-step current, V <= V_max - R_a |I| and R_a I = V - K_B w_m (26) give
-the closed-form range V in [(K_B w_m - V_max)/2, (K_B w_m + V_max)/2] (within +-V_max), so no
-algebraic loop and no one-step lag (a lagged current would make the clamp oscillate with gain -1).
-As (26) already contains the R_a I drop, this counts it twice (the stall torque at the limit is
-halved, the no-load speed unchanged): that is our literal reading of (26)+(27);
-``YuParams.vmax_current_term = False`` clamps at PWM (V_CC - U_loss) only.
+Eq. (27): V_m,max = PWM (V_CC - U_loss) - (dn/dtau) K_T I_m / K_n.  With the motor's speed-torque gradient
+dn/dtau = R_a/(K_T K_B) and the speed constant K_n = 1/K_B its current term is R_a I_m, so (27) is the Maxon
+controller's maximum-speed line written in volts: K_B w_m,max = PWM (V_CC - U_loss) - R_a I_m ("V_m,max controls
+the maximum speed of the motor", Sec. IV-C).  That is (26) itself at the terminal voltage PWM (V_CC - U_loss): the
+controller clamps the voltage at PWM (V_CC - U_loss) and (26) takes the armature drop, once, as a motor has one
+(the testbed reads (27) so too: bench/sim/drive.py).  ``YuParams.vmax_current_term = True`` takes the other
+literal reading, V_m,max of (27) as the V_m of (26), which counts the drop twice (the stall torque at the limit
+halved, the no-load speed unchanged; Fig. 17's 1.5 m/s run saturates 0.02 m/s lower): with the same-step current,
+V <= V_max - R_a |I| and R_a I = V - K_B w_m (26) give the closed-form range
+V in [(K_B w_m - V_max)/2, (K_B w_m + V_max)/2] (within +-V_max), so no algebraic loop and no one-step lag (a
+lagged current would make the clamp oscillate with gain -1).  The default was that double reading until stop 54's
+audit; Yu's 0.93 m/s (Fig. 17, experiment and model) does not tell them apart (0.935 / 0.912 m/s on the testbed).
 
 The open loop replaces PID + controller by a given torque tau = K_tau V (Fig. 16 replays the
 measured torque), clipped to the same motor limits (torque-speed line at V_max, current, power).

@@ -76,9 +76,12 @@ Choices (each one stated where the paper is silent or the testbed differs)
   the motion and ICR tables are the paper's four methods.  Claims ``nees_consistent`` / ``nees_paper``:
   every scenario's seed-averaged 6-state and pose NEES of both filters inside the band at >= 90 % of the
   steps (``bench.estimation.ukf.NEES_MIN_STEP_FRACTION``; Bar-Shalom's per-step test).
-* Outage: scenario 2 cut to 30 s with ``platform.sensors.gnss.outages = [[8, 28]]``; the filters' error at
-  28 s is compared with En-DR and ICR dead reckoning restarted from the true pose at 8 s
-  (``*.drift_window``, :func:`methods.liu2020.repro.tables._window_drift`).
+* Outage: scenario 2 cut to 30 s, GNSS blanked in [8, 28) s on the recorded runs
+  (:func:`bench.robustness.faults.gnss_outage`) in two ways: Liu's 9x1 mode (Sec. IV-C after (32): positions
+  deleted, and so the heading row, :func:`methods.liu2020.model._gnss_block`; GNSS velocity kept; metrics
+  ``mode9x1.*``, claim ``outage_error_end``) and every GNSS channel (our harder check,
+  ``outage_error_end_no_gnss``).  The filters' error at 28 s is compared with En-DR and ICR dead reckoning
+  restarted from the true pose at 8 s (``*.drift_window``, :func:`methods.liu2020.repro.tables._window_drift`).
 """
 from methods.liu2020.repro.consistency import nees, nees_band
 from methods.liu2020.repro.evaluation import (

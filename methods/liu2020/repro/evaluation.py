@@ -25,6 +25,7 @@ from bench.run import Run
 from bench.spec import Scenario, load_scenario
 from bench.estimation.ukf import nees as nees_values
 from bench.estimation.ukf import FilterError, wrap
+from bench.robustness.faults import gnss_outage
 from methods.liu2020 import MiUkfConsistent, SlipDr, UkfIcrConsistent, run_liu_filter
 from methods.liu2020.inputs import geometry
 from methods.liu2020.model import _gnss_block
@@ -64,6 +65,10 @@ class Settings:
     heading_initial_yaw: float = -2.8  # [rad]
     heading_margin: float = 0.02  # [rad]
     outage: tuple[float, float] = (8.0, 28.0)  # [s]
+    # Liu's outage (Sec. IV-C, after eq. (32)): "the dimension of the measurement vector will descend to 9x1 with
+    # the position readings deleted": GNSS x, y go (and with them the heading row: model._gnss_block), the GNSS
+    # velocity stays
+    outage_9x1_channels: tuple[str, ...] = ("gnss_x", "gnss_y")
     outage_duration: float = 30.0  # [s]
     confidence: float = 0.95
     # ICR statistics only over the steady samples where the ICR exists (the testbed truth defines it at
@@ -180,8 +185,10 @@ class Evaluation:
     slip_info: Mapping[str, float]  # the slip model fitted on the calibration run (s_l, s_r, beta, fit_rms)
     heading_runs: tuple[Run, ...]
     heading_est: Mapping[str, tuple[Estimate, ...]]
-    outage_runs: tuple[Run, ...]
+    outage_runs: tuple[Run, ...]  # no GNSS channel in the outage (our check, beyond the paper)
     outage_est: Mapping[str, tuple[Estimate, ...]]
+    outage_9x1_runs: tuple[Run, ...]  # Liu's 9x1 mode: GNSS position and heading deleted, velocity kept
+    outage_9x1_est: Mapping[str, tuple[Estimate, ...]]  # the paper's filters (FILTERS)
 
 
 def _scenario(name: str, duration: float | None, **overrides: Any) -> Scenario:
@@ -306,8 +313,8 @@ def _evaluate(ctx: Any) -> Evaluation:
     # testbed's initial drift is set to 0 instead (a protocol variant of the scored scenarios, mi_vs_ukf_nodrift)
     nodrift = {k: _scenario(SCENARIOS[k], dur, **{"platform.sensors.gnss.initial_drift": 0.0}) for k in scored}
     heading_scn = _scenario(SCENARIOS["s3"], dur, initial_yaw=cfg.heading_initial_yaw)
-    outage_scn = _scenario(SCENARIOS["s2"], cfg.outage_duration,
-                           **{"platform.sensors.gnss.outages": [list(cfg.outage)]})
+    # both outages blank the same runs (F.gnss_outage): the same physics and noise, only the deleted rows differ
+    outage_scn = _scenario(SCENARIOS["s2"], cfg.outage_duration)
     calib_scn = load_scenario(cfg.calib_scenario)
 
     tags: list[tuple[Any, ...]] = [("calib",)]
@@ -375,10 +382,14 @@ def _evaluate(ctx: Any) -> Evaluation:
                                 for s, tr in zip(seeds, truth_ref[k])) for f in FILTERS} for k in scored}
 
     heading_runs = tuple(runs[("heading", s)] for s in seeds)
-    outage_runs = tuple(runs[("outage", s)] for s in seeds)
+    outage_runs = tuple(gnss_outage(runs[("outage", s)], *cfg.outage) for s in seeds)
+    outage_9x1_runs = tuple(gnss_outage(runs[("outage", s)], *cfg.outage, channels=cfg.outage_9x1_channels)
+                            for s in seeds)
+    outage_9x1_est = {f: tuple(_outage_estimate(methods[f], r) for r in outage_9x1_runs) for f in FILTERS}
     heading_est = {f: tuple(registry.estimate(methods[f], r) for r in heading_runs) for f in FILTERS}
     outage_est = {m: tuple(_outage_estimate(meth, r) for r in outage_runs) for m, meth in {**methods, **consistent}.items()}
     ev = Evaluation(tuple(seeds), quick, calib_icr, dict(icr_m.fit_info), results, sweep_stats, s1_liu_stats,
-                    nodrift_rms, slip_info, heading_runs, heading_est, outage_runs, outage_est)
+                    nodrift_rms, slip_info, heading_runs, heading_est, outage_runs, outage_est, outage_9x1_runs,
+                    outage_9x1_est)
     ctx.info[_CACHE_KEY] = ev
     return ev

@@ -7,6 +7,8 @@ no. 2, pp. 340-353, April 2010, doi:10.1109/TRO.2010.2042540.
 """
 from __future__ import annotations
 
+import dataclasses
+
 from typing import Any
 
 import numpy as np
@@ -110,11 +112,16 @@ def fig17(ctx: Any) -> dict[str, float]:
         "v_cmd": 1.5,
     }
     out["v_final_diff"] = out["v_final_model"] - out["v_final_tb"]
+    # the other literal reading of (27): its V_m,max as the V_m of (26), the armature drop counted twice
+    two = dataclasses.replace(cal.model, params=cal.model.params.replace(vmax_current_term=True))
+    out["v_final_model_two_drops"] = float(np.mean(_predict(ctx, two, "straight_1p5_vinyl")[1]["vx"][tail]))
     q = est.info["params"]
     ctx.note("fig17", (
         "Both saturate at the motor controller's voltage limit, eq. (27): PWM (V_CC - U_loss) = "
-        f"{q['PWM']} x ({q['V_CC']} - {q['U_loss']}) V, less the armature drop; the model counts (27)'s current term "
-        "R_a I on top of (26)'s (see methods/yu2010/simulate.py), the testbed once, and the testbed rolls at its tires' loaded radius (~0.995 r)."
+        f"{q['PWM']} x ({q['V_CC']} - {q['U_loss']}) V, less the armature drop R_a I, which (27)'s current term is "
+        "and (26) takes once (methods/yu2010/simulate.py; the testbed reads (27) so too); the testbed rolls at its "
+        "tires' loaded radius (~0.995 r). Read as the V_m of (26), (27)'s V_m,max would count the drop twice: the "
+        f"model would saturate at {out['v_final_model_two_drops']:.3f} m/s (v_final_model_two_drops)."
     ))
     fig = _new_figure(6, 3.6)
     ax = fig.add_subplot(1, 1, 1)

@@ -27,3 +27,29 @@ def test_gap_rules_do_not_depend_on_the_rounding_of_the_times(t0):
     enc_ok[rows[400]] = False
     fresh = _encoder_fresh(grid, enc_ok)
     assert not fresh[rows[399] + 4:rows[401]].any() and fresh[rows[399]:rows[399] + 4].all()
+
+
+def test_without_a_position_fix_block_1_keeps_the_velocity_rows_and_drops_the_heading_row() -> None:
+    """Liu Sec. IV-C after (32): GNSS unavailable, the measurement vector descends to 9x1 "with the position readings
+    deleted".  A sample with heading and velocity but no position keeps the body velocity rows (the GNSS world
+    velocity rotated by the GNSS heading, checked here in closed form) and the gyro, loses x, y and heading; a whole
+    fix keeps all six rows."""
+    from bench.robustness.faults import gnss_outage
+    from methods.liu2020.model import _gnss_block
+    from tests.methods.liu2020.synthetic import make_run
+
+    run = make_run(0, duration=6.0)
+    t = run.t
+    cut = gnss_outage(run, 2.0, 4.0, channels=("gnss_x", "gnss_y"))
+    full, nine = _gnss_block(run), _gnss_block(cut)
+    fix = np.isfinite(run["gnss_x"])
+    inside = fix & (t >= 2.0) & (t < 4.0)
+    assert inside.sum() > 5
+    assert np.isnan(nine[inside][:, :3]).all()  # x, y and the heading row deleted
+    yaw, vx, vy = run["gnss_yaw"][inside], run["gnss_vx"][inside], run["gnss_vy"][inside]
+    body = np.column_stack((np.cos(yaw) * vx + np.sin(yaw) * vy, -np.sin(yaw) * vx + np.cos(yaw) * vy))
+    np.testing.assert_allclose(nine[inside][:, 3:5], body, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(nine[inside][:, 5], run["imu_gz"][inside])
+    outside = fix & ~((t >= 2.0) & (t < 4.0))
+    np.testing.assert_array_equal(nine[outside], full[outside])
+    assert np.isfinite(full[fix]).all()

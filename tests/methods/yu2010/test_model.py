@@ -289,6 +289,24 @@ def test_saturation_speed_of_a_1p5_m_s_command(table: ResistanceTable, current_t
     assert v_final == pytest.approx(0.93, rel=0.06)  # Fig. 17: ~0.93 m/s (ours 0.954 / 0.976)
 
 
+@pytest.mark.parametrize("load", [0.5, 2.0, 6.0])  # [N m] on one side, at the wheels
+def test_the_model_reads_27_as_the_testbed_does_one_armature_drop(load: float) -> None:
+    """By default the model counts (27)'s current term once, as the armature drop of (26), as the testbed's motor
+    line does (bench.sim.drive, a second implementation): at the controller limit the side carrying ``load`` turns
+    at the wheel speed where the testbed's line gives that torque.  The double reading turns slower."""
+    import dataclasses
+
+    from bench.sim.drive import MotorConstants, motor_law
+
+    plat = load_platform("p3at_pneumatic_20psi")
+    q = P.with_platform(plat)
+    c = dataclasses.replace(MotorConstants.from_spec(plat.motor), eff=1.0, p_max=0.0, i_max=1e9)
+    w = q.saturation_wheel_speed(load)
+    tau, _cur, _slope = motor_law(c)(c.v_max, w)
+    assert q.V_max == pytest.approx(c.v_max, rel=1e-12) and tau == pytest.approx(load, rel=1e-9)
+    assert q.replace(vmax_current_term=True).saturation_wheel_speed(load) < w
+
+
 def test_closed_loop_reaches_steady_state_of_the_resistance(table: ResistanceTable) -> None:
     wl, wr = inverse_kinematics(0.2, 4.0, P, alpha=1.0)  # Figs. 10-13: 0.2 m/s, R = 4 m
     res = simulate_closed_loop([0, 8], [wl, wl], [wr, wr], P, table=table)
