@@ -10,6 +10,7 @@ import re
 import textwrap
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -392,7 +393,8 @@ FAKE = textwrap.dedent('''
 ''')
 
 
-def test_calibration_target_and_real_robot_table_in_the_written_report(tmp_path, monkeypatch):
+def reproduce_fake(tmp_path: Path, monkeypatch) -> tuple[Path, Any]:
+    """The FAKE paper reproduced into ``tmp_path / "results"`` with its parameter sources: (results folder, result)."""
     d = tmp_path / "papers"
     d.mkdir()
     (d / "p.toml").write_text(FAKE)
@@ -400,6 +402,11 @@ def test_calibration_target_and_real_robot_table_in_the_written_report(tmp_path,
     monkeypatch.setattr("bench.reproduce.sources.SOURCE_DIRS", _sources(tmp_path))
     out = tmp_path / "results"
     res, = R.reproduce(["p"], results_dir=out, cache_dir=tmp_path / "cache" / "runs", log=lambda s: None)
+    return out, res
+
+
+def test_calibration_target_and_real_robot_table_in_the_written_report(tmp_path, monkeypatch):
+    out, res = reproduce_fake(tmp_path, monkeypatch)
     claims = {c["id"]: c for c in res.claims}
     assert claims["order"]["holds"] is True and claims["order"]["verdict"] == "calibration target"
     assert claims["fails"]["verdict"] == "does not hold" and claims["fails"]["refuted"] is None  # no margin

@@ -18,7 +18,7 @@ from bench.reproduce.sensitivity import Choice, Edit, choices, flips, papers_usi
 from bench.schema import SpecError
 from bench.sources import file_sources
 from bench.spec import SCENARIO_DIR, load_platform, load_terrain
-from tests.test_claims import FAKE, _sources
+from tests.test_claims import reproduce_fake
 
 TOML = textwrap.dedent('''
     name = "robot"
@@ -136,13 +136,7 @@ def test_papers_using_match_the_platform_and_terrain_names():
 def test_the_study_and_the_report_mark_a_verdict_a_choice_decides(tmp_path, monkeypatch):
     """run_sensitivity with the child run replaced by hand-made claims: a flip of a claim that is not a calibration
     target is listed as decided, a flip of a target is not; the report marks the headline row and the paper."""
-    d = tmp_path / "papers"
-    d.mkdir()
-    (d / "p.toml").write_text(FAKE)
-    monkeypatch.setattr("bench.reproduce.paper.PAPERS_DIR", d)
-    monkeypatch.setattr("bench.reproduce.sources.SOURCE_DIRS", _sources(tmp_path))
-    out = tmp_path / "results"
-    R.reproduce(["p"], results_dir=out, cache_dir=tmp_path / "cache" / "runs", log=lambda s: None)
+    out, _res = reproduce_fake(tmp_path, monkeypatch)
     base = json.loads((out / "claims.json").read_text())["claims"]
     assert base["p.fails"]["verdict"] == "does not hold" and base["p.order"]["verdict"] == "calibration target"
 

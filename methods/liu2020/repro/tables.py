@@ -341,6 +341,12 @@ def heading(ctx: Any) -> dict[str, float]:
 
 
 # ------------------------------------------------------------------------------------------ outage
+def _end_errors(runs: Any, ests: Any, i: int) -> np.ndarray:
+    """Per seed, the estimate's planar position error against the truth at sample ``i``."""
+    return np.array([float(np.hypot(e["x"][i] - r["truth_x"][i], e["y"][i] - r["truth_y"][i]))
+                     for r, e in zip(runs, ests)])
+
+
 def _window_drift(run: Any, est: Any, i0: int, i1: int) -> float:
     """Position error at row i1 of a dead reckoning restarted at row i0 from the true pose: the estimate's own
     displacement over [i0, i1] in its body frame at i0, applied to the truth pose at i0."""
@@ -395,19 +401,16 @@ def outage(ctx: Any) -> dict[str, float]:
     i0 = int(np.searchsorted(t, t0))
     drift = {m: np.array([_window_drift(r, e, i0, i_end) for r, e in zip(ev.outage_runs, ev.outage_est[m])])
              for m in ("en_dr", "icr")}
-    worst = np.max([[float(np.hypot(e["x"][i_end] - r["truth_x"][i_end], e["y"][i_end] - r["truth_y"][i_end]))
-                     for r, e in zip(ev.outage_runs, ev.outage_est[f])] for f in FILTERS], axis=0)
+    worst = np.max([_end_errors(ev.outage_runs, ev.outage_est[f], i_end) for f in FILTERS], axis=0)
     out["en_dr.drift_window"], out["icr.drift_window"] = float(np.mean(drift["en_dr"])), float(np.mean(drift["icr"]))
     out["filters.err_end"] = float(np.mean(worst))
     out["margin.outage"] = _half_width(drift["en_dr"] - worst)
     # the same outage in Liu's 9x1 mode (GNSS positions and heading row deleted, GNSS velocity kept): the claim's
     # protocol; the dead reckoning uses no GNSS, so its drift over the window is the one above
-    worst9 = np.zeros(n)
-    for f in FILTERS:
-        err9 = np.array([float(np.hypot(e["x"][i_end] - r["truth_x"][i_end], e["y"][i_end] - r["truth_y"][i_end]))
-                         for r, e in zip(ev.outage_9x1_runs, ev.outage_9x1_est[f])])
+    end9 = {f: _end_errors(ev.outage_9x1_runs, ev.outage_9x1_est[f], i_end) for f in FILTERS}
+    for f, err9 in end9.items():
         out[f"mode9x1.{f}.err_end"] = float(np.mean(err9))
-        worst9 = np.maximum(worst9, err9)
+    worst9 = np.max(list(end9.values()), axis=0)
     out["mode9x1.filters.err_end"] = float(np.mean(worst9))
     out["mode9x1.margin.outage"] = _half_width(drift["en_dr"] - worst9)
     drift_text = (f"dead reckoning over the same {t1 - t0:g} s from the true pose at {t0:g} s: En-DR "
