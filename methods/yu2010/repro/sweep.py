@@ -100,7 +100,8 @@ def table1(ctx: Any) -> dict[str, float]:
            if out["K_N31"] > 3.0 * terr["shear_modulus"] else "")
         + f"N = 2 uses R = {radii_of(2)} m: the nearly straight run carries only rolling resistance, so three "
         "parameters meet two informative torques and least_squares follows a flat valley to our bound mu_sa <= 3 "
-        f"(mu_sa = {out['mu_sa_N2']:.3f}, converged = {bool(out['converged_N2'])}). N = 3 (R = {radii_of(3)} m) and N = 4 (R = {radii_of(4)} m) reach a "
+        f"(mu_sa = {out['mu_sa_N2']:.3f}, converged = {bool(out['converged_N2'])}). N = 3 (R = {radii_of(3)} m) "
+        f"and N = 4 (R = {radii_of(4)} m) reach a "
         f"different minimum with large K and mu_sa (N = 3: K = {out['K_N3']:.4f} m, mu_sa = {out['mu_sa_N3']:.3f}; "
         f"the stress stays in its linear range, where only mu/K matters); least_squares from {len(MULTISTART)} "
         f"starts (K0 = 0.3..30 mm) ends there every time (relative spread of K: N = 3 "
