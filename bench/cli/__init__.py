@@ -38,12 +38,17 @@ def command(name: str, help_: str):
 
 
 def _progress():
+    from rich.console import Console
     from rich.progress import (BarColumn, Progress, TaskProgressColumn, TextColumn, TimeElapsedColumn,
                                TimeRemainingColumn)
 
+    # on stderr, with the log lines printed through it: stdout keeps only a command's result lines.  Drawn
+    # only on a terminal (as tqdm's disable=None): a log file or a pipe gets the log lines, not a bar frozen at
+    # whatever it showed when the output was flushed, and an error stays the one line on stderr.
     # TaskProgressColumn: the percentage, blank while a bar has no total (pulsing) instead of "0.0%"
+    console = Console(stderr=True)
     return Progress(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeElapsedColumn(),
-                    TimeRemainingColumn(), transient=False)
+                    TimeRemainingColumn(), transient=False, console=console, disable=not console.is_terminal)
 
 
 def parse_sets(items: Sequence[str] | None) -> dict[str, Any]:
