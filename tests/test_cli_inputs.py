@@ -71,6 +71,14 @@ def test_values_the_testbed_cannot_run_are_refused_before_it_starts(tmp_path, ca
     assert f"'{field}'" in err and words in err and not (tmp_path / "x.parquet").exists()
 
 
+def test_stdout_has_the_result_line_and_no_bar_when_not_a_terminal(tmp_path, capsys) -> None:
+    """A redirected run: the bar is not drawn (it went to stdout, frozen at its last frame), stdout is the result."""
+    out = tmp_path / "x.parquet"
+    assert main(["simulate", "straight_0p2_vinyl", "--set", "duration=0.5", "-o", str(out)]) == 0
+    cap = capsys.readouterr()
+    assert cap.out.startswith(f"wrote {out} (") and cap.out.count("\n") == 1 and cap.err == ""
+
+
 def test_an_output_path_that_is_a_folder_is_one_line(tmp_path, capsys) -> None:
     assert main(["simulate", "straight_0p2_vinyl", "--set", "duration=0.5", "-o", str(tmp_path)]) == 2
     assert str(tmp_path) in _one_line(capsys)
