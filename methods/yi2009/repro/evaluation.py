@@ -16,7 +16,7 @@ import numpy as np
 
 from bench import registry
 from bench.metrics import Trajectory, final_position_error, position_rms
-from bench.registry import Estimate
+from bench.registry import Estimate, make_estimate
 from bench.reproduce import mean_ci
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
@@ -97,6 +97,12 @@ def _score(run: Run, est: Estimate, vis: tuple[np.ndarray, np.ndarray], cfg: Set
     return out
 
 
+def _truth_s(run: Run, cfg: Settings) -> float | None:
+    """The truth's S [m] on a path (median after ``slip_t0``), None where it has none (no turn: eq. (7) is 0/0)."""
+    s = run["truth_x_icr"][run.t >= cfg.slip_t0]
+    return float(np.nanmedian(s)) if np.isfinite(s).any() else None
+
+
 def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settings) -> dict[str, float]:
     """Truth quantities of a scored path (declared truth): net longitudinal slip, S, yaw rate, and the
     magnitude/variation of the vision slip reference."""
@@ -105,8 +111,8 @@ def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settin
     tread = 0.5 * r * (run["truth_wl"][w] + run["truth_wr"][w])
     out = {"net_slip": float(1.0 - np.sum(run["truth_vx"][w]) / np.sum(tread)),
            "abs_wz": float(np.mean(np.abs(run["truth_wz"][w])))}
-    s = run["truth_x_icr"][w]
-    out["s_truth"] = float(np.nanmedian(s)) if np.isfinite(s).any() else math.nan
+    s_true = _truth_s(run, cfg)
+    out["s_truth"] = math.nan if s_true is None else s_true
     tv, lv = vis
     t_end = float(run.t[-1]) - 0.5 * cfg.slip_window
     m = (tv >= cfg.slip_t0) & (tv <= t_end) & np.isfinite(lv).all(axis=1)
@@ -150,6 +156,32 @@ def gyro_roll_error(run: Run, t_min: float) -> float:
         roll[k] = phi
     m = t >= t_min
     return float(np.sqrt(np.mean((roll[m] - np.interp(t[m], run.t, run["truth_roll"])) ** 2)))
+
+
+def attribution_estimate(model: Yi2009Ekf, run: Run, *, s_true: float | None, feedback: bool) -> Estimate:
+    """Scheme 3 with one or both of its two error sources on the testbed removed (a diagnostic, not Yi's filter).
+
+    ``s_true`` [m] (not None): S(gamma) of (41) replaced by that constant (a2 = 0, a1 = s_true a3), the truth's S on
+    the path.  ``feedback`` False: the slip is not fed back into (13) (lambda' = 0 there and in gamma (40), as in
+    scheme 1's v_x row; :func:`methods.yi2009.consistent.filter.run_filter_gm` with ``slip_rows="state"`` and no error
+    states).  Everything else is ``model``'s filter: (10), (11), (15), (26a)-(26f), its Q, R, x0 and P0."""
+    from methods.yi2009.consistent.filter import run_filter_gm
+    from methods.yi2009.ekf import _estimate_output, _geometry as ekf_geometry, align_inputs, initial_state
+    from methods.yi2009.s_gamma import SGamma
+
+    if model.variant != 3:
+        raise ValueError(f"attribution_estimate: scheme 3 only (got {model.variant})")
+    if s_true is not None:
+        a3 = model.s_gamma.a3
+        model = dataclasses.replace(model, s_gamma=SGamma(s_true * a3, 0.0, a3))
+    r, track = ekf_geometry(run)
+    t, acc, gyr, enc = align_inputs(run)
+    x0, p0 = initial_state(acc, enc, r, model.params, model.initial_pose)
+    res = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=3, s_gamma=model.s_gamma,
+                        params=model.params, x0=x0, p0=p0, gm_x=None, where=run.where,
+                        slip_rows="feedback" if feedback else "state")[0]
+    cols, info = _estimate_output(model, res, t, enc, r, track, x0)
+    return make_estimate(f"{model.name}.attribution", info, **cols)
 
 
 def _evaluate(ctx: Any) -> Evaluation:
@@ -230,6 +262,13 @@ def _evaluate(ctx: Any) -> Evaluation:
                 if i == 0:
                     est0[v] = est
             scores.setdefault("v3_pub", []).append(_score(run, registry.estimate(v3_pub, run), vis, cfg))
+            s_true = _truth_s(run, cfg)  # the physics is seed independent: one S per path
+            for name, s_, fb in (("v3_true_s", s_true, True), ("v3_no_feedback", None, False),
+                                 ("v3_true_s_no_feedback", s_true, False)):
+                if fb and s_ is None:
+                    continue  # the straight: no S to replace
+                scores.setdefault(name, []).append(
+                    _score(run, attribution_estimate(v3, run, s_true=s_, feedback=fb), vis, cfg, slips=False))
             scores.setdefault("gyro", []).append({"roll_err": gyro_roll_error(run, cfg.slip_t0)})
             if i == 0:
                 vis0 = vis

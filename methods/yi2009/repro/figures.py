@@ -392,6 +392,11 @@ def diagnosis(ctx: Any) -> dict[str, float]:
         out[f"{k}.abs_wz"] = pr.truth["abs_wz"]
         out[f"{k}.s_v3_cm"] = 100.0 * pr.mean("v3", "s_used")[0]
         out[f"{k}.v3_published_s"] = pr.mean("v3_pub", "rms")[0]
+        # scheme 3's two error sources removed one at a time and together (evaluation.attribution_estimate), beside
+        # schemes 1 and 3 as scored
+        for m in ("v1", "v3", "v3_true_s", "v3_no_feedback", "v3_true_s_no_feedback"):
+            if m in pr.scores:
+                out[f"{k}.attribution.{m}"] = pr.mean(m, "rms")[0]
         out[f"{k}.gyro.roll_err"] = pr.mean("gyro", "roll_err")[0]
         for v in VARIANTS:
             out[f"{k}.v{v}.roll_err"] = pr.mean(f"v{v}", "roll_err")[0]
