@@ -14,9 +14,13 @@ Shared helpers (public, reused by :mod:`methods.mandow2007` and :mod:`methods.wa
 - :func:`held_integral`      exact integral of a zero-order-held signal between two instants
 - :func:`dead_reckon`        body velocities at the encoder instants -> world poses (SE(2), ZOH)
 
-Conventions (DESIGN.md): body x forward, y left, yaw CCW; tread speeds ``v = r * w``; the velocity
-of encoder sample ``k`` is held over ``[t_k, t_{k+1})`` (the zero-order hold of
-:func:`bench.kinematics.integrate_se2`).
+Conventions (DESIGN.md): body x forward, y left, yaw CCW; tread speeds ``v = r * w``.  An encoder reading is
+the count difference over the period that ENDS at its stamp (:func:`bench.sim.sensors.encoders`, and what encoder
+drivers publish), so :func:`encoder_speeds` returns at index ``k`` the reading stamped ``t_{k+1}``: the speed over
+``[t_k, t_{k+1}]``, which the zero-order hold of :func:`bench.kinematics.integrate_se2` and :func:`held_integral`
+applies there (as :func:`methods.liu2020.inputs._interval_speed`).  Holding the reading of ``t_k`` over the next
+period instead integrated every wheel one sample late (a wheel ramping to 4 rad/s in 2 s through the testbed's
+encoder: 5.960 rad for the true 6.000).
 """
 from __future__ import annotations
 
@@ -80,9 +84,11 @@ def _check_time(run: Run, t: np.ndarray, channel: str) -> None:
 
 
 def encoder_speeds(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Encoder samples ``(t, wl, wr)``: the rows where both ``enc_wl`` and ``enc_wr`` are finite
-    (a NaN reading is dropped, never integrated).  Raises :class:`RunError` naming the run and the
-    channel when fewer than two samples remain."""
+    """Encoder instants and interval speeds ``(t, wl, wr)`` at the rows where both ``enc_wl`` and ``enc_wr`` are
+    finite (a NaN reading is dropped, never integrated).  ``wl[k]``, ``wr[k]`` are the readings stamped ``t[k+1]``,
+    the mean speeds over ``[t[k], t[k+1]]`` (a reading covers the period ending at its stamp); the last is repeated
+    (it holds after the log's end, where no pose is asked) and the first reading, of the period before the log, is
+    not used.  Raises :class:`RunError` naming the run and the channel when fewer than two samples remain."""
     t = run.t
     wl, wr = run["enc_wl"], run["enc_wr"]
     ok = np.isfinite(t) & np.isfinite(wl) & np.isfinite(wr)
@@ -92,7 +98,7 @@ def encoder_speeds(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
                        "dead reckoning needs at least two samples with both encoders finite")
     t, wl, wr = t[ok], wl[ok], wr[ok]
     _check_time(run, t, "encoder")
-    return t, wl, wr
+    return t, np.concatenate((wl[1:], wl[-1:])), np.concatenate((wr[1:], wr[-1:]))
 
 
 def reference_poses(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

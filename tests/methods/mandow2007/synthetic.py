@@ -3,7 +3,8 @@
 The synthetic runs are built here from the paper's own relations, not from methods.mandow2007:
 joystick-like body velocities (v, omega), lateral velocity from eq. (5) (v_x = y_ICRv omega, Mandow's
 X to the right), tread speeds from the inverse kinematics of eqs. (16)-(17), poses from the exact SE(2)
-integration of bench.kinematics.  Encoder speeds change only at encoder instants, so a model with
+integration of bench.kinematics.  Encoder speeds change only at encoder instants (each reading the speed of the
+period ending at its stamp, as the testbed's encoder reports it), so a model with
 the true parameters reproduces the reference exactly.
 """
 from __future__ import annotations
@@ -42,7 +43,10 @@ def simulate_icr_run(x_l: float, x_r: float, y_v: float, a_l: float, a_r: float,
     x, y, yaw = integrate_se2(t, vx, vy, wz, *pose0)
     ref = np.zeros(t.size, bool)
     ref[:: int(round(rate / ref_rate))] = True
-    cols = {"t": t, "cmd_wl": v_l / r, "cmd_wr": v_r / r, "enc_wl": v_l / r, "enc_wr": v_r / r,
+    # an encoder reading covers the period ending at its stamp (bench.sim.sensors.encoders): the one of t_k is the
+    # speed held over [t_(k-1), t_k]; the first one (the period before the log) repeats the first speed
+    enc_l, enc_r = (np.concatenate((v[:1], v[:-1])) / r for v in (v_l, v_r))
+    cols = {"t": t, "cmd_wl": v_l / r, "cmd_wr": v_r / r, "enc_wl": enc_l, "enc_wr": enc_r,
             "ref_x": np.where(ref, x, np.nan), "ref_y": np.where(ref, y, np.nan),
             "ref_yaw": np.where(ref, yaw, np.nan), "truth_x": x, "truth_y": y, "truth_yaw": yaw}
     return from_arrays(cols, {"platform": dict(PLATFORM), "run_id": run_id, **(meta or {})})

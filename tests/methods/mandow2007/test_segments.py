@@ -6,6 +6,7 @@ import pytest
 
 from bench.kinematics import integrate_se2
 from methods import mandow2007 as M
+from methods.baselines import encoder_speeds
 from tests.methods.mandow2007.synthetic import joystick_run
 
 
@@ -19,7 +20,8 @@ def test_segment_increments_match_integrate_se2_per_segment():
     p = M.IcrParams(-0.31, 0.27, 0.02, 0.95, 0.9)
     dx, dy, dphi = (a[0] for a in M.segment_increments(seg, p.as_array()))
     t = run.t
-    vx, vy, wz = M.body_velocities(p, run["enc_wl"] * 0.11, run["enc_wr"] * 0.11)
+    _, wl, wr = encoder_speeds(run)  # the speeds of the periods [t_k, t_(k+1)]
+    vx, vy, wz = M.body_velocities(p, wl * 0.11, wr * 0.11)
     ends = np.flatnonzero(np.isfinite(run["ref_x"]))
     for i, (a, b) in enumerate(zip(ends[:-1], ends[1:], strict=True)):
         x, y, yaw = integrate_se2(t[a:b + 1], vx[a:b + 1], vy[a:b + 1], wz[a:b + 1])

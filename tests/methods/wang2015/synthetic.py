@@ -23,7 +23,10 @@ def symmetric_run(v_l: np.ndarray, v_r: np.ndarray, chi: np.ndarray, t: np.ndarr
     ref = np.zeros(t.size, bool)
     ref[::step] = True
     ref[-1] = True
-    cols = {"t": t, "enc_wl": v_l / R, "enc_wr": v_r / R, "ref_x": np.where(ref, x, np.nan),
+    # an encoder reading covers the period ending at its stamp (bench.sim.sensors.encoders): the one of t_k is the
+    # speed held over [t_(k-1), t_k]; the first one (the period before the log) repeats the first speed
+    enc_l, enc_r = (np.concatenate((v[:1], v[:-1])) / R for v in (v_l, v_r))
+    cols = {"t": t, "enc_wl": enc_l, "enc_wr": enc_r, "ref_x": np.where(ref, x, np.nan),
             "ref_y": np.where(ref, y, np.nan), "ref_yaw": np.where(ref, yaw, np.nan),
             "truth_x": x, "truth_y": y, "truth_yaw": yaw}
     return from_arrays(cols, {"platform": dict(PLATFORM), "run_id": run_id})
