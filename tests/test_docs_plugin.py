@@ -42,7 +42,9 @@ def _run(seed: int, scale: float, r: float = 0.1, track: float = 0.5):
     wz = r * (wr - wl) / (scale * track)
     x, y, yaw = integrate_se2(t, vx, np.zeros_like(t), wz)
     meta = {"id": f"doc{seed}", "platform": {"name": "doc_robot", "wheel_radius": r, "track": track}}
-    return from_arrays({"t": t, "enc_wl": wl, "enc_wr": wr, "ref_x": x, "ref_y": y, "ref_yaw": yaw}, meta)
+    # a reading covers the period ending at its stamp (bench.sim.sensors.encoders): the speed held before it
+    enc_l, enc_r = (np.concatenate((w[:1], w[:-1])) for w in (wl, wr))
+    return from_arrays({"t": t, "enc_wl": enc_l, "enc_wr": enc_r, "ref_x": x, "ref_y": y, "ref_yaw": yaw}, meta)
 
 
 def test_the_example_recovers_its_track_on_runs(example):
