@@ -419,6 +419,8 @@ def table3_conditions(ctx: Any) -> dict[str, float]:
         for model in ("asymmetric", "asymmetric_de", "p3at", "symmetric"):
             out[f"{key}_{model}_path_rms"] = cond.path_rms[model]
         out[f"{key}_asymmetric_lowest_path_rms"] = float(min(MODELS, key=cond.path_rms.__getitem__) == "asymmetric")
+        if cond.symmetric is not None:  # eq. (12): alpha from the straight runs alone (DGPS), beside the GA's
+            out[f"{key}_symmetric_alpha"] = float(cond.symmetric.identification.alpha)
     done = sum(1 for c in ev.conditions.values() if c.scores)
     best = [k for k, v in out.items() if k.endswith("_asymmetric_lowest_path_rms") and v == 1.0]
     ctx.info["table3_conditions_lowest_path_rms"] = len(best)
