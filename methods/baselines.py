@@ -20,7 +20,7 @@ drivers publish), so :func:`encoder_speeds` returns at index ``k`` the reading s
 ``[t_k, t_{k+1}]``, which the zero-order hold of :func:`bench.kinematics.integrate_se2` and :func:`held_integral`
 applies there (as :func:`methods.liu2020.inputs._interval_speed`).  Holding the reading of ``t_k`` over the next
 period instead integrated every wheel one sample late (a wheel ramping to 4 rad/s in 2 s through the testbed's
-encoder: 5.960 rad for the true 6.000).
+encoder: 3.960 rad for the true 4.000).
 """
 from __future__ import annotations
 
@@ -86,9 +86,11 @@ def _check_time(run: Run, t: np.ndarray, channel: str) -> None:
 def encoder_speeds(run: Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Encoder instants and interval speeds ``(t, wl, wr)`` at the rows where both ``enc_wl`` and ``enc_wr`` are
     finite (a NaN reading is dropped, never integrated).  ``wl[k]``, ``wr[k]`` are the readings stamped ``t[k+1]``,
-    the mean speeds over ``[t[k], t[k+1]]`` (a reading covers the period ending at its stamp); the last is repeated
-    (it holds after the log's end, where no pose is asked) and the first reading, of the period before the log, is
-    not used.  Raises :class:`RunError` naming the run and the channel when fewer than two samples remain."""
+    the mean speeds over ``[t[k], t[k+1]]`` (a reading covers the period ending at its stamp; across a dropped
+    reading the next one is held back over the gap, of which its own period is only the end).  The last is
+    repeated (it holds after the log's end, where no pose is asked) and the first reading, of the period before
+    the log, is not used.  Raises :class:`RunError` naming the run and the channel when fewer than two samples
+    remain."""
     t = run.t
     wl, wr = run["enc_wl"], run["enc_wr"]
     ok = np.isfinite(t) & np.isfinite(wl) & np.isfinite(wr)

@@ -531,3 +531,20 @@ def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report
     assert _counts([beyond]) == "holding 0; failing 1 (protocol 1)"
     assert _counts([inside, {**inside, "favours": True}]) == \
         "holding 0; failing 2 (protocol 2, 2 of them not refuted (inside the interval; the means favour the claim in 1))"
+
+
+def test_a_redirected_reproduce_logs_whole_lines_without_markup(tmp_path, monkeypatch, capsys):
+    """Off a terminal the log goes to stderr line by line, a long line unwrapped and "[m/s]" kept (rich markup would
+    eat a bracketed word and wrap at 80 columns), and stdout stays empty of it."""
+    from bench.cli import main
+
+    title = "Real robot numbers, speed [m/s] over the straight, " + " ".join(["a long title"] * 8)
+    d = tmp_path / "papers"
+    d.mkdir()
+    (d / "p.toml").write_text(FAKE.replace('title = "Real robot numbers"', f'title = "{title}"', 1))
+    monkeypatch.setattr("bench.reproduce.paper.PAPERS_DIR", d)
+    monkeypatch.setattr("bench.reproduce.sources.SOURCE_DIRS", _sources(tmp_path))
+    assert main(["reproduce", "p", "--results", str(tmp_path / "r"), "--workers", "1"]) == 0
+    cap = capsys.readouterr()
+    assert any(line.endswith(title) for line in cap.err.splitlines()), cap.err
+    assert title not in cap.out

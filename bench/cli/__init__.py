@@ -46,7 +46,7 @@ def _progress():
     # only on a terminal (as tqdm's disable=None): a log file or a pipe gets the log lines, not a bar frozen at
     # whatever it showed when the output was flushed, and an error stays the one line on stderr.
     # TaskProgressColumn: the percentage, blank while a bar has no total (pulsing) instead of "0.0%"
-    console = Console(stderr=True)
+    console = Console(stderr=True, soft_wrap=True)  # a log line is not wrapped at 80 columns off a terminal
     return Progress(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(), TimeElapsedColumn(),
                     TimeRemainingColumn(), transient=False, console=console, disable=not console.is_terminal)
 

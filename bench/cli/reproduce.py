@@ -240,7 +240,7 @@ def _reproduce_into(a: argparse.Namespace, results_dir: Path, papers: list[str] 
 
         def log(msg: str) -> None:
             with lock:
-                prog.console.print(msg)
+                prog.console.print(msg, markup=False, highlight=False)  # "[m]" in a message is text, not markup
 
         run_papers = papers != [] and (papers is not None or a.all or not a.papers)
 

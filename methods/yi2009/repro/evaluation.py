@@ -131,6 +131,9 @@ def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settin
     ok = np.where(run["truth_wz"] > 0, (tl[:, 0] <= 0) & (tl[:, 1] >= 0), (tl[:, 0] >= 0) & (tl[:, 1] <= 0))
     turn &= np.isfinite(tl).all(axis=1)
     out["sign_rule"] = float(np.mean(ok[turn])) if turn.any() else math.nan
+    outer_l = np.abs(run["truth_wl"]) >= np.abs(run["truth_wr"])  # the faster wheel's side is the outer one
+    for side, col in (("outer", np.where(outer_l, tl[:, 0], tl[:, 1])), ("inner", np.where(outer_l, tl[:, 1], tl[:, 0]))):
+        out[f"slip_{side}"] = float(np.median(col[turn])) if turn.any() else math.nan  # eq. (6), truth, turning
     # Fig. 7c: a side whose truth slip takes both signs: the smaller of its two excursions (positive and negative)
     out["sign_excursion"] = float(max(min(np.max(tl[fin, j]), -np.min(tl[fin, j])) for j in range(2)))
     return out
@@ -265,8 +268,8 @@ def _evaluate(ctx: Any) -> Evaluation:
             s_true = _truth_s(run, cfg)  # the physics is seed independent: one S per path
             for name, s_, fb in (("v3_true_s", s_true, True), ("v3_no_feedback", None, False),
                                  ("v3_true_s_no_feedback", s_true, False)):
-                if fb and s_ is None:
-                    continue  # the straight: no S to replace
+                if s_true is None and "true_s" in name:
+                    continue  # the straight: no true S to put in
                 scores.setdefault(name, []).append(
                     _score(run, attribution_estimate(v3, run, s_true=s_, feedback=fb), vis, cfg, slips=False))
             scores.setdefault("gyro", []).append({"roll_err": gyro_roll_error(run, cfg.slip_t0)})

@@ -390,6 +390,9 @@ def diagnosis(ctx: Any) -> dict[str, float]:
             out[f"{k}.s_truth_cm"] = 100.0 * pr.truth["s_truth"]
             out[f"{k}.abs_gamma"] = pr.truth["abs_gamma"]
         out[f"{k}.abs_wz"] = pr.truth["abs_wz"]
+        for side in ("outer", "inner"):
+            if math.isfinite(pr.truth[f"slip_{side}"]):
+                out[f"{k}.slip_{side}"] = pr.truth[f"slip_{side}"]
         out[f"{k}.s_v3_cm"] = 100.0 * pr.mean("v3", "s_used")[0]
         out[f"{k}.v3_published_s"] = pr.mean("v3_pub", "rms")[0]
         # scheme 3's two error sources removed one at a time and together (evaluation.attribution_estimate), beside
