@@ -132,7 +132,8 @@ def _truth_diagnostics(run: Run, vis: tuple[np.ndarray, np.ndarray], cfg: Settin
     turn &= np.isfinite(tl).all(axis=1)
     out["sign_rule"] = float(np.mean(ok[turn])) if turn.any() else math.nan
     outer_l = np.abs(run["truth_wl"]) >= np.abs(run["truth_wr"])  # the faster wheel's side is the outer one
-    for side, col in (("outer", np.where(outer_l, tl[:, 0], tl[:, 1])), ("inner", np.where(outer_l, tl[:, 1], tl[:, 0]))):
+    sides = {"outer": np.where(outer_l, tl[:, 0], tl[:, 1]), "inner": np.where(outer_l, tl[:, 1], tl[:, 0])}
+    for side, col in sides.items():
         out[f"slip_{side}"] = float(np.median(col[turn])) if turn.any() else math.nan  # eq. (6), truth, turning
     # Fig. 7c: a side whose truth slip takes both signs: the smaller of its two excursions (positive and negative)
     out["sign_excursion"] = float(max(min(np.max(tl[fin, j]), -np.min(tl[fin, j])) for j in range(2)))
