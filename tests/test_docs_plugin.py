@@ -17,6 +17,7 @@ from bench.real.drive import import_drive_windows
 from bench.real.windows import end_errors
 from bench.registry import calibrate, estimate
 from bench.run import from_arrays
+from tests.fixtures.encoders import readings
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "plugins.md"
 
@@ -42,8 +43,7 @@ def _run(seed: int, scale: float, r: float = 0.1, track: float = 0.5):
     wz = r * (wr - wl) / (scale * track)
     x, y, yaw = integrate_se2(t, vx, np.zeros_like(t), wz)
     meta = {"id": f"doc{seed}", "platform": {"name": "doc_robot", "wheel_radius": r, "track": track}}
-    # a reading covers the period ending at its stamp (bench.sim.sensors.encoders): the speed held before it
-    enc_l, enc_r = (np.concatenate((w[:1], w[:-1])) for w in (wl, wr))
+    enc_l, enc_r = readings(wl), readings(wr)
     return from_arrays({"t": t, "enc_wl": enc_l, "enc_wr": enc_r, "ref_x": x, "ref_y": y, "ref_yaw": yaw}, meta)
 
 

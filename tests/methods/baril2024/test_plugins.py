@@ -9,6 +9,7 @@ import pytest
 from bench import registry
 from bench.run import RunError, from_arrays
 from methods.baril2024 import BlrSlip, NotCalibratedError
+from tests.fixtures.encoders import readings
 from tests.methods.baril2024.synthetic import B, R, TRUE_SLIP, arcs, true_velocities
 
 
@@ -20,8 +21,7 @@ def _run(seed: int, n: int = 400, ref_every: int = 1):
     x, y, h = arcs(*true_velocities(wl, wr), 0.5, -0.3, 1.0)
     ref = np.full(n, np.nan)
     keep = np.arange(n) % ref_every == 0
-    # a reading covers the period ending at its stamp (bench.sim.sensors.encoders): the level held before it
-    enc_l, enc_r = (np.concatenate((w[:1], w[:-1])) for w in (wl, wr))
+    enc_l, enc_r = readings(wl), readings(wr)
     cols = {"t": 0.05 * np.arange(n), "enc_wl": enc_l, "enc_wr": enc_r, "ref_x": np.where(keep, x, ref),
             "ref_y": np.where(keep, y, ref), "ref_yaw": np.where(keep, h, ref)}
     return from_arrays(cols, {"run_id": f"synthetic{seed}", "platform": {"wheel_radius": R, "track": B}}).validate()

@@ -15,6 +15,7 @@ from scipy.signal import lfilter
 from bench.kinematics import integrate_se2
 from bench.run import from_arrays
 from methods import mandow2007 as M
+from tests.fixtures.encoders import readings
 
 PLATFORM = {"name": "p3at", "track": 0.4, "wheel_radius": 0.11, "wheelbase": 0.27}
 
@@ -43,9 +44,7 @@ def simulate_icr_run(x_l: float, x_r: float, y_v: float, a_l: float, a_r: float,
     x, y, yaw = integrate_se2(t, vx, vy, wz, *pose0)
     ref = np.zeros(t.size, bool)
     ref[:: int(round(rate / ref_rate))] = True
-    # an encoder reading covers the period ending at its stamp (bench.sim.sensors.encoders): the one of t_k is the
-    # speed held over [t_(k-1), t_k]; the first one (the period before the log) repeats the first speed
-    enc_l, enc_r = (np.concatenate((v[:1], v[:-1])) / r for v in (v_l, v_r))
+    enc_l, enc_r = readings(v_l / r), readings(v_r / r)
     cols = {"t": t, "cmd_wl": v_l / r, "cmd_wr": v_r / r, "enc_wl": enc_l, "enc_wr": enc_r,
             "ref_x": np.where(ref, x, np.nan), "ref_y": np.where(ref, y, np.nan),
             "ref_yaw": np.where(ref, yaw, np.nan), "truth_x": x, "truth_y": y, "truth_yaw": yaw}

@@ -9,6 +9,7 @@ import numpy as np
 
 from bench.kinematics import integrate_se2
 from bench.run import from_arrays
+from tests.fixtures.encoders import readings
 
 PLATFORM = {"name": "p3at", "track": 0.4, "wheel_radius": 0.11}
 B, R = PLATFORM["track"], PLATFORM["wheel_radius"]
@@ -23,9 +24,7 @@ def symmetric_run(v_l: np.ndarray, v_r: np.ndarray, chi: np.ndarray, t: np.ndarr
     ref = np.zeros(t.size, bool)
     ref[::step] = True
     ref[-1] = True
-    # an encoder reading covers the period ending at its stamp (bench.sim.sensors.encoders): the one of t_k is the
-    # speed held over [t_(k-1), t_k]; the first one (the period before the log) repeats the first speed
-    enc_l, enc_r = (np.concatenate((v[:1], v[:-1])) / R for v in (v_l, v_r))
+    enc_l, enc_r = readings(v_l / R), readings(v_r / R)
     cols = {"t": t, "enc_wl": enc_l, "enc_wr": enc_r, "ref_x": np.where(ref, x, np.nan),
             "ref_y": np.where(ref, y, np.nan), "ref_yaw": np.where(ref, yaw, np.nan),
             "truth_x": x, "truth_y": y, "truth_yaw": yaw}
