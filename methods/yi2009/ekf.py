@@ -152,7 +152,8 @@ class FilterResult:
 
 def run_filter(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray, *, wheel_radius: float,
                track: float, variant: int, s_gamma: SGamma, params: EkfParams, x0: np.ndarray,
-               p0: np.ndarray, store_cov: bool = False, where: str = "run") -> FilterResult:
+               p0: np.ndarray, store_cov: bool = False, where: str = "run",
+               slip_rows: str = "feedback") -> FilterResult:
     """Run the EKF (26a)-(26f) over IMU steps, as the paper defines it (the 9 states, white R).
 
     ``t`` (n,), ``acc`` (n, 3) specific force [m/s^2], ``gyr`` (n, 3) [rad/s] in B; ``enc`` (n, 2)
@@ -162,11 +163,14 @@ def run_filter(t: np.ndarray, acc: np.ndarray, gyr: np.ndarray, enc: np.ndarray,
     Raises :class:`FilterDivergence` with the step index when the innovation covariance is not
     positive definite (Cholesky, LAPACK dpotrf) or the state becomes non-finite.
     The loop is :func:`run_filter_gm`'s without error states (``gm_x=None``) and with its default options (Yi's
-    rows): one implementation serves the paper and the consistent configuration."""
+    rows): one implementation serves the paper and the consistent configuration.  ``slip_rows`` is Yi's
+    ``"feedback"`` of (13)-(14); ``"state"`` (lambda' = 0, no error state) only for the reproduction's diagnosis
+    (:func:`methods.yi2009.repro.evaluation.attribution_estimate`)."""
     from methods.yi2009.consistent.filter import run_filter_gm  # the one loop (it imports this module)
 
     return run_filter_gm(t, acc, gyr, enc, wheel_radius=wheel_radius, track=track, variant=variant, s_gamma=s_gamma,
-                         params=params, x0=x0, p0=p0, gm_x=None, store_cov=store_cov, where=where)[0]
+                         params=params, x0=x0, p0=p0, gm_x=None, store_cov=store_cov, where=where,
+                         slip_rows=slip_rows)[0]
 
 
 def _geometry(run: Run) -> tuple[float, float]:
@@ -311,16 +315,22 @@ class Yi2009Ekf:
         return replace(self, s_gamma=fit.s_gamma, calibration=fit, calibration_points=tuple(pts))
 
     def estimate(self, run: Run) -> Estimate:
+        return self.estimate_rows(run)
+
+    def estimate_rows(self, run: Run, slip_rows: str = "feedback", name: str | None = None) -> Estimate:
+        """:meth:`estimate` with :func:`run_filter`'s ``slip_rows`` (Yi's ``"feedback"``, the plugin's) and the
+        estimate named ``name`` (default: the plugin's)."""
         run.require(self.requires, self.name)
         r, track = _geometry(run)
         t, acc, gyr, enc = align_inputs(run)
         x0, p0 = initial_state(acc, enc, r, self.params, self.initial_pose)
         res = run_filter(t, acc, gyr, enc, wheel_radius=r, track=track, variant=self.variant, s_gamma=self.s_gamma,
-                         params=self.params, x0=x0, p0=p0, store_cov=self.store_covariance, where=run.where)
+                         params=self.params, x0=x0, p0=p0, store_cov=self.store_covariance, where=run.where,
+                         slip_rows=slip_rows)
         cols, info = _estimate_output(self, res, t, enc, r, track, x0)
         if res.cov is not None:
             info["P"] = res.cov  # state order (P_I, V_I, phi, theta, psi), as FilterResult.state
-        return make_estimate(self.name, info, **cols)
+        return make_estimate(name or self.name, info, **cols)
 
     def window_models(self, wheel_radius: float, track: float) -> list[WindowModel]:
         """Yi's kinematics as real-data window models (the protocol of :mod:`bench.real.windows`): the EKF itself

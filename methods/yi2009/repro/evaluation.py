@@ -16,7 +16,7 @@ import numpy as np
 
 from bench import registry
 from bench.metrics import Trajectory, final_position_error, position_rms
-from bench.registry import Estimate, make_estimate
+from bench.registry import Estimate
 from bench.reproduce import mean_ci
 from bench.run import Run
 from bench.spec import Scenario, load_scenario
@@ -168,9 +168,8 @@ def attribution_estimate(model: Yi2009Ekf, run: Run, *, s_true: float | None, fe
     ``s_true`` [m] (not None): S(gamma) of (41) replaced by that constant (a2 = 0, a1 = s_true a3), the truth's S on
     the path.  ``feedback`` False: the slip is not fed back into (13) (lambda' = 0 there and in gamma (40), as in
     scheme 1's v_x row; :func:`methods.yi2009.consistent.filter.run_filter_gm` with ``slip_rows="state"`` and no error
-    states).  Everything else is ``model``'s filter: (10), (11), (15), (26a)-(26f), its Q, R, x0 and P0."""
-    from methods.yi2009.consistent.filter import run_filter_gm
-    from methods.yi2009.ekf import _estimate_output, _geometry as ekf_geometry, align_inputs, initial_state
+    states).  Everything else is ``model``'s filter (:meth:`Yi2009Ekf.estimate_rows`): (10), (11), (15),
+    (26a)-(26f), its Q, R, x0 and P0."""
     from methods.yi2009.s_gamma import SGamma
 
     if model.variant != 3:
@@ -178,14 +177,7 @@ def attribution_estimate(model: Yi2009Ekf, run: Run, *, s_true: float | None, fe
     if s_true is not None:
         a3 = model.s_gamma.a3
         model = dataclasses.replace(model, s_gamma=SGamma(s_true * a3, 0.0, a3))
-    r, track = ekf_geometry(run)
-    t, acc, gyr, enc = align_inputs(run)
-    x0, p0 = initial_state(acc, enc, r, model.params, model.initial_pose)
-    res = run_filter_gm(t, acc, gyr, enc, wheel_radius=r, track=track, variant=3, s_gamma=model.s_gamma,
-                        params=model.params, x0=x0, p0=p0, gm_x=None, where=run.where,
-                        slip_rows="feedback" if feedback else "state")[0]
-    cols, info = _estimate_output(model, res, t, enc, r, track, x0)
-    return make_estimate(f"{model.name}.attribution", info, **cols)
+    return model.estimate_rows(run, "feedback" if feedback else "state", name=f"{model.name}.attribution")
 
 
 def _evaluate(ctx: Any) -> Evaluation:
