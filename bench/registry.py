@@ -66,6 +66,12 @@ class CalibrationLeak(RuntimeError):
     """Raised when a method would be scored on a run it was calibrated on."""
 
 
+class NotCalibratedError(RuntimeError):
+    """A method asked to estimate before calibration identified its parameters (``skidbench estimate`` then says to
+    give calibration runs).  The plugins' own not-calibrated errors derive from it; any other exception of
+    ``estimate`` is the method's defect, reported whole."""
+
+
 class CalibrationDataError(ValueError):
     """The calibration runs given cannot calibrate this method (they lack the experiment its identification needs):
     bad input, reported in one line.  A method's own calibration-data errors derive from it."""
@@ -123,9 +129,18 @@ def discover() -> dict[str, Callable[[], Method]]:
     return dict(sorted(out.items()))
 
 
+class PluginLoadError(RuntimeError):
+    """A registered entry point that cannot be imported (a broken installed plugin): one line naming it."""
+
+
 def get(name: str, **kwargs: Any) -> Method:
     eps = discover()
     if name not in eps:
         raise KeyError(f"unknown method '{name}'; registered: {', '.join(eps) or '(none)'}")
-    factory = eps[name].load()  # type: ignore[union-attr]
+    ep = eps[name]
+    try:
+        factory = ep.load()  # type: ignore[union-attr]
+    except Exception as exc:  # noqa: BLE001 - whatever the plugin's import raises, named in one line
+        raise PluginLoadError(f"method '{name}': its entry point {getattr(ep, 'value', ep)} failed to load "
+                              f"({type(exc).__name__}: {exc}); fix or uninstall the package that registers it") from exc
     return factory(**kwargs)

@@ -60,6 +60,30 @@ def test_estimate_of_a_method_that_needs_calibration_says_so(tmp_path, capsys) -
     assert "--calibrate" in err[0] and not (tmp_path / "e.csv").exists()
 
 
+def test_estimate_does_not_blame_calibration_for_a_plugins_own_error(tmp_path, monkeypatch) -> None:
+    """A plugin whose estimate raises its own ValueError: shown whole (its author needs the traceback), never
+    "cannot estimate uncalibrated ... give calibration runs", which would send its user the wrong way."""
+    from bench import registry
+    from bench.sim import simulate
+    from bench.spec import load_scenario
+
+    class Buggy:
+        name, requires = "test.buggy", frozenset({"enc_wl"})
+
+        def calibrate(self, runs):
+            return self
+
+        def estimate(self, run):
+            raise ValueError("my plugin bug")
+
+    monkeypatch.setattr(registry, "get", lambda name, **kw: Buggy())
+    run = tmp_path / "r.parquet"
+    simulate(load_scenario("straight_0p2_vinyl", {"duration": 1.0}), 0).to_parquet(run)
+    with pytest.raises(ValueError, match="my plugin bug"):
+        cli.main(["estimate", "test.buggy", str(run), "-o", str(tmp_path / "e.csv")])
+    assert not (tmp_path / "e.csv").exists()
+
+
 @pytest.mark.parametrize("dtype", ["str", "string", "bool"])
 def test_a_run_with_a_non_numeric_channel_is_named(tmp_path, capsys, dtype) -> None:
     """A channel stored as text (or booleans) in a run's Parquet: one line naming the file, the column and its type."""

@@ -90,6 +90,9 @@ def defect(df: pd.DataFrame, kind: str) -> pd.DataFrame:
         df[_cols(df, "imu_yaw")] *= 180.0 / np.pi
     elif kind == "gyro_deg_flipped":  # in deg/s and upside down
         df[_cols(df, "imu_yaw")] *= -180.0 / np.pi
+    elif kind == "clock_offset":  # the gyro 4 samples (0.2 s) early: each sample is the rate 4 samples later
+        a = df[_cols(df, "imu_yaw")].to_numpy()
+        df[_cols(df, "imu_yaw")] = a[:, np.minimum(np.arange(N) + 4, N - 1)]
     elif kind == "stale_reference":  # the reference held over the last 10 samples of 80 % of the windows
         rows = np.random.default_rng(0).random(len(df)) < 0.8
         for b in ("icp_x", "icp_y", "icp_yaw"):
@@ -115,7 +118,8 @@ def _findings(df: pd.DataFrame, tmp_path: Path, wheel_radius: float | None = R) 
 
 def test_clean_table_raises_no_warning(clean, tmp_path):
     found = _findings(clean[1], tmp_path)
-    assert set(found) == {"gyro_sign", "imu_offset", "update_rate", "stale_reference", "command_lag", "wheel_scale"}
+    assert set(found) == {"gyro_sign", "imu_offset", "update_rate", "stale_reference", "command_lag", "clock_offset",
+                          "wheel_scale"}
     assert all(f.ok for f in found.values()), [f.line() for f in found.values() if not f.ok]
     assert found["gyro_sign"].values["slope"] == pytest.approx(1.0, abs=0.02)
     # the synthetic body moves at the tread speed R (w_l + w_r) / 2 exactly (no longitudinal slip)
@@ -125,7 +129,8 @@ def test_clean_table_raises_no_warning(clean, tmp_path):
     assert 0.05 <= found["command_lag"].values["t50_s"] <= 0.2
 
 
-@pytest.mark.parametrize("kind", ["gyro_sign", "imu_offset", "update_rate", "stale_reference", "wheel_scale"])
+@pytest.mark.parametrize("kind", ["gyro_sign", "imu_offset", "update_rate", "stale_reference", "clock_offset",
+                                  "wheel_scale"])
 def test_each_defect_fires_its_check_alone(clean, tmp_path, kind):
     found = _findings(defect(clean[1], kind), tmp_path)
     assert not found[kind].ok, found[kind].line()
@@ -221,6 +226,62 @@ def test_real_needs_an_output_folder_and_a_known_fix(clean, tmp_path, capsys):
     assert "magic" in capsys.readouterr().err
 
 
+def test_flipping_a_gyro_that_follows_the_reference_is_refused(clean, tmp_path, capsys):
+    """--fix flip_gyro on a good gyro would corrupt it: one line naming the fix and the check's evidence, exit 2,
+    nothing written; on a flipped gyro it corrects it (test_fixes_correct_what_they_name)."""
+    out = tmp_path / "o"
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(out), "--fix", "flip_gyro",
+                 "--no-figures"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "flip_gyro" in err[0] and "nothing to flip" in err[0] and "slope" in err[0]
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_methods_always_score_ideal_dd_and_say_when_no_icr_model_ran(clean, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(out), "--methods", "wang2015.constant_chi",
+                 "--no-figures", "--json", str(tmp_path / "a.json")]) == 0
+    res = json.loads((tmp_path / "a.json").read_text())["data"][str(clean[0])]
+    assert set(res["models"]) == {"ideal_dd", "icr_sym_chi"} and res["verdict"]["best_icr_model"] == "icr_sym_chi"
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(tmp_path / "p"), "--methods",
+                 "yi2009.ekf_v3", "--no-figures"]) == 0
+    assert "no ICR-family model scored" in capsys.readouterr().out
+    md = next((tmp_path / "p").glob("*.md")).read_text()
+    assert "No verdict: no ICR-family model" in md and "None" not in md and "nan" not in md.split("## Verdict")[1]
+
+
+def test_a_plugin_that_fails_to_load_is_one_line(clean, tmp_path, capsys, monkeypatch):
+    """A broken installed plugin (its entry point names a missing class) stops `real` with one line naming it."""
+    from bench import registry
+
+    class BrokenEntryPoint:
+        name, value = "brokenlab.nope", "brokenlab.mod:Nope"
+
+        def load(self):
+            raise AttributeError("module 'brokenlab.mod' has no attribute 'Nope'")
+
+    found = registry.discover()
+    monkeypatch.setattr(registry, "discover", lambda: {**found, "brokenlab.nope": BrokenEntryPoint()})
+    with pytest.raises(registry.PluginLoadError, match="brokenlab.mod:Nope"):
+        registry.get("brokenlab.nope")
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(tmp_path / "o"), "--no-figures"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "brokenlab.nope" in err[0] and "failed to load" in err[0]
+
+
+@pytest.mark.parametrize("column", ["cmd_left_3", "imu_yaw_10", "left_wheel_vel_39"])
+def test_a_nan_in_any_input_drops_the_window_for_every_model(clean, tmp_path, column):
+    from bench.real.benchmark import run_real_benchmark
+
+    df = clean[1].copy()
+    df.loc[df.index[4], column] = np.nan
+    p = tmp_path / "nan.parquet"
+    df.to_parquet(p)
+    res = run_real_benchmark(p, tmp_path / "out", figures=False, models=["baseline.ideal_dd", "yi2009.ekf_v3"])
+    assert res["n_excluded"] == 1
+    assert all(np.isfinite(m["stats"]["all"][e]["median"]) for m in res["models"].values() for e in ("trans", "yaw"))
+
+
 def test_bootstrap_interval_over_steps_is_the_percentiles_of_resampled_medians():
     from bench.real.league import _resample, bootstrap_median
 
@@ -250,6 +311,14 @@ def test_league_says_plainly_where_an_icr_model_does_not_beat_ideal_dd(tmp_path)
     one, other = text.split("## chi1.6")
     assert "`icr_sym_chi` does not beat ideal differential drive on this data set" in one
     assert "does not beat" not in other and "| `icr_sym_chi` |" in other and "beats (" in other
+    # the registered plugins without window models are named as not scored, and none of them has a row
+    from bench.real.benchmark import plugins_without_window_models
+
+    names = plugins_without_window_models()
+    assert "mandow2007.symmetric" in names and "baseline.ideal_dd" not in names
+    listed = league_markdown(out, names)
+    assert "Not scored (registered plugins without window models" in listed and "Not scored" not in text
+    assert all(f"`{n}`" in listed and f"| `{n}` |" not in listed for n in names)
 
 
 def _run_of(log: dict, imu_every: int = 1) -> "Run":

@@ -210,9 +210,9 @@ def _input_error(exc: Exception) -> bool:
         return True
     from bench.metrics.trajectory import MetricError
     from bench.real.benchmark import NoWindowModels
-    from bench.registry import CalibrationDataError, CalibrationLeak
+    from bench.registry import CalibrationDataError, CalibrationLeak, PluginLoadError
 
-    return isinstance(exc, (CalibrationLeak, CalibrationDataError, MetricError, NoWindowModels))
+    return isinstance(exc, (CalibrationLeak, CalibrationDataError, MetricError, NoWindowModels, PluginLoadError))
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ def _drive_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--track", type=float, default=None, help="[m], overrides the platform")
     p.add_argument("-o", "--output", type=Path, required=True, help="folder for one Parquet run per command step")
     p.add_argument("--fix", action="append", default=[], metavar="NAME",
-                   help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
+                   help="apply a sanity check's correction: flip_gyro, imu_offset, align_gyro, drop_stale (repeatable)")
 
 
 def print_sanity(where: Path, sanity: dict) -> None:

@@ -65,7 +65,7 @@ def _real_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--methods", default=None,
                    help="comma-separated plugin names (default: every registered plugin with window models)")
     p.add_argument("--fix", action="append", default=[], metavar="NAME",
-                   help="apply a sanity check's correction: flip_gyro, imu_offset, drop_stale (repeatable)")
+                   help="apply a sanity check's correction: flip_gyro, imu_offset, align_gyro, drop_stale (repeatable)")
     p.add_argument("--no-figures", action="store_true")
 
 
@@ -78,6 +78,7 @@ def _real(a: argparse.Namespace) -> int:
     methods = [m.strip() for m in a.methods.split(",") if m.strip()] if a.methods else every_window_plugin()
     if not methods:
         raise SpecError("<command line>", "--methods", a.methods, "at least one plugin name")
+    methods = list(dict.fromkeys(["baseline.ideal_dd", *methods]))  # every verdict is against ideal DD
     output_files(a, "json")
     with staged_folder(a.out) as stage:  # every table's files appear in --out together, or none of them
         docs = _score_tables(a, plat, methods, stage)
@@ -99,9 +100,10 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
         for name, why in res["skipped_models"].items():
             print(f"{data}: {name} not scored: {why}")
         v = res["verdict"]
-        print(f"{data}: {len(res['models'])} models on {res['n_test_windows']} held-out windows; best ICR model "
-              f"{v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
-              f"{v['ideal_dd_median_trans']:.3f} m -> {a.out / (label + '.md')}")
+        best = (f"best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
+                f"{v['ideal_dd_median_trans']:.3f} m" if v["best_icr_model"] else "no ICR-family model scored")
+        print(f"{data}: {len(res['models'])} models on {res['n_test_windows']} held-out windows; {best} -> "
+              f"{a.out / (label + '.md')}")
         docs[str(data)] = {k: res[k] for k in res if k not in ("files", "runtime_s") and not k.startswith("_")}
     return docs
 

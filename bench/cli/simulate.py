@@ -141,7 +141,7 @@ def _est_args(p: argparse.ArgumentParser) -> None:
 def _estimate(a: argparse.Namespace) -> int:
     from bench import registry
     from bench.report.io import atomic_write_text
-    from bench.run import Run, RunError
+    from bench.run import Run
 
     method = registry.get(a.method)
     if a.calibrate:
@@ -149,12 +149,11 @@ def _estimate(a: argparse.Namespace) -> int:
     run = Run.from_parquet(a.run).validate()
     try:
         est = registry.estimate(method, run)
-    except (RuntimeError, ValueError) as exc:
-        if isinstance(exc, (RunError, registry.CalibrationLeak)):
+    except registry.NotCalibratedError as exc:
+        if a.calibrate:  # calibrated and still not: the method's defect, to see whole
             raise
-        if a.calibrate:  # a calibrated method that fails on the run: a defect to see whole, not a usage error
-            raise
-        # uncalibrated: the method's parameters come from calibration runs (Mandow's GA, Liu's ICR fit, ...)
+        # the method's parameters come from calibration runs (Mandow's GA, Liu's ICR fit, ...); any other exception
+        # is the method's own defect, shown whole
         print(f"error: {a.run}: {a.method} cannot estimate uncalibrated ({exc}); give calibration runs with "
               "--calibrate RUN [RUN ...]", file=sys.stderr)
         return 2

@@ -38,6 +38,12 @@ offering its rows through ``window_models(wheel_radius, track)`` (the window pro
 ``models`` of :func:`run_real_benchmark` takes other plugin names or :class:`WindowModel` objects; a
 plugin written against Runs only fits in through :class:`bench.real.adapter.PluginModel`.
 
+Time convention of the wheel speeds.  Step 4 holds wheel-speed sample k over [t_k, t_k+1].  A DRIVE table does not
+say which period its ``left_wheel_vel`` covers; skidbench's Runs read a reading as the speed over the period *ending*
+at its stamp (``docs/plugins.md``), which is sample k+1 over [t_k, t_k+1].  The verdicts are computed again with
+that reading (:func:`later_wheel_speeds`: every model refitted and scored the same way) and the report says which
+ones change: a verdict that changes is decided by a convention the data do not give.
+
 Measured chi (:mod:`bench.real.chi`): per steady window turning at least ``MIN_TURN`` rad, Wang eq. (25)/(42)
 ``chi = 2 y0 / B = (S_r - S_l) / (phi B)`` with ``S_i = r * sum(w_i dt)`` and ``phi`` the ICP yaw
 change over the same samples; tabulated by |curvature ratio| bin beside Wang's published P3-AT
@@ -68,9 +74,8 @@ from bench.real.report import write_report
 from bench.real.league import paired_median_difference, step_draws
 from bench.real.sanity import apply_fixes, scored_windows
 from bench.run import RunError
-from bench.real.windows import MIN_TURN, WindowModel, end_errors, tread_speeds, window_chi
+from bench.real.windows import ICR_FAMILY, MIN_TURN, WindowModel, end_errors, tread_speeds, window_chi
 
-ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
 #: the plugins whose window models the benchmark scores by default, in the order of their rows
 DEFAULT_METHODS = ("baseline.ideal_dd", "wang2015.constant_chi", "mandow2007.asymmetric_ga", "wang2015.chi_lambda",
                    "yi2009.ekf_v3")
@@ -109,6 +114,13 @@ def every_window_plugin() -> list[str]:
             for m in method.window_models(1.0, 1.0):
                 rows.setdefault(m.name, n)
     return list(dict.fromkeys(rows.values()))
+
+
+def plugins_without_window_models() -> list[str]:
+    """The registered plugins that offer no window models (the real benchmark does not score them: they need
+    inputs a DRIVE window lacks, e.g. torques or GNSS, or are Run-based only; :class:`bench.real.adapter.PluginModel`
+    scores a Run-based one on request)."""
+    return sorted(n for n in registry.discover() if not callable(getattr(registry.get(n), "window_models", None)))
 
 
 def resolve_models(models: Sequence[WindowModel | str] | None, wheel_radius: float, track: float
@@ -151,6 +163,49 @@ def _slope(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.polyfit(x[ok], y[ok], 1)[0]) if ok.sum() >= 2 else math.nan
 
 
+def later_wheel_speeds(w: DriveWindows) -> DriveWindows:
+    """The windows with wheel-speed sample k+1 in place of sample k (``enc_wl``, ``enc_wr``; the last sample
+    held): step 4's hold then integrates each reading over the period ending at its stamp, the convention of
+    skidbench's Runs (module docstring)."""
+    ch = dict(w.channels)
+    for c in ("enc_wl", "enc_wr"):
+        a = np.asarray(w[c], float)
+        ch[c] = np.concatenate([a[:, 1:], a[:, -1:]], axis=1)
+    return dataclasses.replace(w, channels=ch)
+
+
+def _verdicts(results: Mapping[str, Mapping[str, Any]], best: str | None, draws: Sequence[np.ndarray]
+              ) -> dict[str, Any]:
+    """The paired intervals of the verdicts: best ICR-family model against ideal DD, and each Yi row against the
+    best ICR-family model, in translation and yaw (over the held-out step resamples ``draws``)."""
+
+    def paired(a: str, b: str, err: str) -> list[float]:
+        return list(paired_median_difference(results[a][err], results[b][err], draws))
+
+    interval = paired(best, "ideal_dd", "trans") if best is not None and "ideal_dd" in results else [math.nan] * 2
+    return {
+        # met when the paired interval over the held-out steps of (best - ideal DD) median lies below zero
+        "best_minus_ideal_interval": interval,
+        "passed": bool(best is not None and interval[1] < 0),
+        # the Yi models against the best ICR-family model, paired the same way
+        "yi_vs_best": {k: {e: paired(k, best, e) for e in ("trans", "yaw")}
+                       for k in ("yi2009_s_gamma", "yi2009_s_gamma_gyro") if k in results and best is not None},
+    }
+
+
+def _fit_all(models: Sequence[WindowModel], calib: DriveWindows, named: Sequence[Any] | None
+             ) -> tuple[list[WindowModel], dict[str, str]]:
+    fitted, skipped = [], {}
+    for m in models:
+        try:
+            fitted.append(m.fit(calib))
+        except RunError as exc:  # a channel the model reads is not in this data set
+            if named is not None and m.name in named:
+                raise
+            skipped[m.name] = str(exc)
+    return fitted, skipped
+
+
 def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0,
                        platform: str | Mapping[str, Any] | None = "husky",
                        wheel_radius: float | None = None, track: float | None = None,
@@ -175,19 +230,13 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     n_excluded = allw.n_windows - w.n_windows  # windows without finite wheel speeds or reference ends
     fixed_w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(fixed_w, seed)
-    if "imu_offset" in fixes:  # the offsets again, measured on the calibration half only (the same windows stay)
+    if {"imu_offset", "align_gyro"} & set(fixes):  # measured again on the calibration half only (same windows)
         fixed_w, fixed = apply_fixes(w, fixes, measure_on=np.isin(w.calib_step, calib_steps))
     w = fixed_w
     calib = w.subset(np.isin(w.calib_step, calib_steps))
     test = w.subset(np.isin(w.calib_step, test_steps))
-    fitted, skipped = [], {}
-    for m in resolve_models(models, r, B):
-        try:
-            fitted.append(m.fit(calib))
-        except RunError as exc:  # a channel the model reads is not in this data set
-            if models is not None and m.name in models:
-                raise
-            skipped[m.name] = str(exc)
+    unfitted = resolve_models(models, r, B)
+    fitted, skipped = _fit_all(unfitted, calib, models)
     results = {m.name: evaluate(m, test) for m in fitted}
 
     # measured chi (all usable steady windows) and two independent checks of the time base
@@ -223,21 +272,19 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     family = {k: results[k]["stats"]["all"]["trans"]["median"] for k in ICR_FAMILY if k in results}
     best = min(family, key=family.get) if family else None  # chosen on the test half: the report says so
     draws = step_draws(test.calib_step)
-
-    def paired(a: str, b: str, err: str) -> list[float]:
-        return list(paired_median_difference(results[a][err], results[b][err], draws))
-
-    interval = paired(best, "ideal_dd", "trans") if best is not None and "ideal_dd" in results else [math.nan] * 2
     verdict = {
         "ideal_dd_median_trans": ideal,
         "best_icr_model": best,
         "best_icr_median_trans": family.get(best, math.nan) if best else math.nan,
-        # met when the paired interval over the held-out steps of (best - ideal DD) median lies below zero
-        "best_minus_ideal_interval": interval,
-        "passed": bool(best is not None and interval[1] < 0),
-        # the Yi models against the best ICR-family model, paired the same way
-        "yi_vs_best": {k: {e: paired(k, best, e) for e in ("trans", "yaw")}
-                       for k in ("yi2009_s_gamma", "yi2009_s_gamma_gyro") if k in results and best is not None},
+        **_verdicts(results, best, draws),
+    }
+    # the same verdicts with the other reading of the wheel speeds' time stamps (module docstring); the same
+    # best ICR-family model, the same resamples of the held-out steps
+    later_fitted, _ = _fit_all(unfitted, later_wheel_speeds(calib), models)
+    later = {m.name: evaluate(m, later_wheel_speeds(test)) for m in later_fitted}
+    verdict["later_wheel_speeds"] = {
+        **_verdicts(later, best, draws),
+        "medians_trans": {k: v["stats"]["all"]["trans"]["median"] for k, v in later.items()},
     }
     out = {
         "platform": name, "wheel_radius": r, "track": B, "seed": int(seed),

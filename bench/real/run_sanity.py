@@ -10,7 +10,8 @@ to the run itself, with the values measured on its windows:
 * ``flip_gyro``: ``imu_gz`` multiplied by -1;
 * ``imu_offset``: the steady-window offsets of ``imu_ax``, ``imu_ay`` and the gyro bias subtracted (measured after
   the flip, as :func:`~bench.real.sanity.apply_fixes` does);
-* ``drop_stale`` selects windows, not samples: refused here with a one-line error (pass it to ``skidbench real``).
+* ``drop_stale`` selects windows, and ``align_gyro`` reads the gyro at another sample of the scored windows: refused
+  here with a one-line error (pass them to ``skidbench real``).
 
 The same checks run again when the imported run is scored (``skidbench real RUN.parquet``), so the import's record is
 what the data looked like as recorded, and the score's is what was scored.
@@ -21,7 +22,7 @@ import dataclasses
 from typing import Any, Sequence
 
 from bench.real.run_windows import windows_from_run
-from bench.real.sanity import FIXES, RUN_UNIT_COLUMNS, check_windows, refuse_unit_slips
+from bench.real.sanity import FIXES, RUN_UNIT_COLUMNS, check_windows, refuse_needless_flip, refuse_unit_slips
 from bench.run import Run, RunError
 from bench.spec import SpecError
 
@@ -42,8 +43,9 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
         if f not in FIXES:
             raise SpecError("<command line>", where, f, f"expected one of {', '.join(RUN_FIXES)}")
         if f not in RUN_FIXES:
-            raise SpecError("<command line>", where, f, "drop_stale drops scored windows, not samples: pass it "
-                            "to `skidbench real` instead")
+            what = ("drops scored windows, not samples" if f == "drop_stale"
+                    else "reads the gyro at another sample of the scored windows")
+            raise SpecError("<command line>", where, f, f"{f} {what}: pass it to `skidbench real` instead")
     try:
         w = windows_from_run(run)
     except RunError as e:
@@ -56,6 +58,7 @@ def check_run(run: Run, fixes: Sequence[str] = (), where: str = "--fix") -> Run:
         return Run(run.data, {**run.meta, "sanity": sanity})
     data, lines = run.data.copy(), []
     if "flip_gyro" in fixes and "imu_gz" in data.columns:
+        refuse_needless_flip(next((f for f in found if f.check == "gyro_sign"), None), where)
         data["imu_gz"] = -data["imu_gz"]
         lines.append("flip_gyro: imu_gz multiplied by -1")
     if "imu_offset" in fixes:  # measured after the flip, on the windows of the corrected samples

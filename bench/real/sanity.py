@@ -22,6 +22,9 @@ check                  evidence                                                 
 ``command_lag``        median time from a command step's half-way crossing to the      T10 > 1 s or < -0.1 s
                        wheel speed's crossing of 10 % (T10) and 50 % (T50) of the step, (a clock offset between
                        each transitory window joined to the one before it              the streams?); no fix
+``clock_offset``       the shift, in samples, that best fits the reference's yaw rate   gyro off by 2 samples or
+                       by ``imu_gz`` (and, shown, its forward speed and yaw rate by     more (``align_gyro``)
+                       the wheels' mean and difference; :mod:`bench.real.clock`)
 ``wheel_scale``        slope (least squares through the origin) of the reference's     slope outside 1/3..3
                        path speed (ICP path length over the window, signed as the      (0.105: rpm as rad/s;
                        treads) against the tread speed r (w_l + w_r) / 2, when the     0.017: deg/s; or the
@@ -74,7 +77,8 @@ WHEEL_SCALE = (1.0 / 3.0, 3.0)  # reference path speed / tread speed: outside it
 UNIT_MIN_R = 0.6  # a gyro slope is read as a unit mistake only when gyro and reference correlate this well
 STRAIGHT_TURN = 0.2  # a window is straight when its tread difference is under this share of its tread speed
 MIN_STRAIGHT, MAX_STRAIGHT_SPREAD = 5, 0.5  # straight windows needed, and their ratios' IQR / median, for a unit
-FIXES = ("flip_gyro", "imu_offset", "drop_stale")
+MAX_CLOCK_OFFSET = 2.0  # [samples] 0.1 s at 20 Hz: 5 % of a 2 s window's motion between the gyro and reference
+FIXES = ("flip_gyro", "imu_offset", "align_gyro", "drop_stale")
 
 
 @dataclass(frozen=True)
@@ -258,6 +262,27 @@ def _command_lag(w: DriveWindows) -> Finding | None:
     return Finding("command_lag", True, text, values)
 
 
+def _clock_offset(w: DriveWindows) -> Finding | None:
+    """The input streams' time offsets to the reference (:func:`bench.real.clock.offsets`).  Only the gyro's is judged:
+    every model reads the wheel speeds, so their offset moves all rows alike (shown: a held stream is late by half
+    its hold, and in a turn the yaw follows the treads through the turn's dynamics), while a gyro offset is paid by
+    the models that read the gyro alone."""
+    from bench.real.clock import offsets
+
+    values = offsets(w)
+    if not values:
+        return None
+    names = {"imu_gz": "imu_gz", "wheels_forward": "wheels' forward speed", "wheels_turn": "wheels' turn"}
+    text = ("best fit to the reference's rate at a shift of " + ", ".join(
+        f"{names[k]} {v:+.1f} samples ({1000 * v * w.dt:+.0f} ms)" for k, v in values.items())
+        + " (+: the stream is late; the wheels' are shown, not judged)")
+    if abs(values.get("imu_gz", 0.0)) >= MAX_CLOCK_OFFSET:
+        return Finding("clock_offset", False, f"{text}; the gyro is off by {MAX_CLOCK_OFFSET:g} samples or more: a "
+                       "model that reads it is scored against a reference that is early or late for it", values,
+                       "align_gyro")
+    return Finding("clock_offset", True, text, values)
+
+
 def _wheel_scale(w: DriveWindows, wheel_radius: float | None) -> Finding | None:
     """The reference's path speed against the tread speed (module docstring): a unit or radius check."""
     if wheel_radius is None or not all(w.has(c) for c in ("enc_wl", "enc_wr", "ref_x", "ref_y")) or w.n_samples < 2:
@@ -336,9 +361,15 @@ def check_windows(w: DriveWindows, wheel_radius: float | None = None) -> list[Fi
     """Every check that the table's channels allow (see the module docstring); ``wheel_radius`` [m] adds the
     ``wheel_scale`` check."""
     rates = _update_rate(w)  # the stale-pose check reads the reference's rate from it
-    found = [_gyro_sign(w), _imu_offset(w), rates, _stale_reference(w, rates), _command_lag(w),
+    found = [_gyro_sign(w), _imu_offset(w), rates, _stale_reference(w, rates), _command_lag(w), _clock_offset(w),
              _wheel_scale(w, wheel_radius)]
     return [f for f in found if f is not None]
+
+
+def refuse_needless_flip(finding: Finding | None, where: str = "--fix") -> None:
+    """A one-line error for ``flip_gyro`` on a gyro that follows the reference (flipping it would corrupt it)."""
+    if finding is not None and finding.values.get("slope", -1.0) > 0:
+        raise SpecError("<command line>", where, "flip_gyro", f"nothing to flip: {finding.evidence}")
 
 
 def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
@@ -353,6 +384,7 @@ def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
     ch: dict[str, Any] = dict(w.channels)
     done = []
     if "flip_gyro" in fixes and "imu_gz" in ch:
+        refuse_needless_flip(_gyro_sign(w), where)
         ch["imu_gz"] = -np.asarray(ch["imu_gz"])
         done.append("flip_gyro: imu_gz multiplied by -1")
     out = dataclasses.replace(w, channels=ch)
@@ -364,6 +396,12 @@ def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
             ch[c] = np.asarray(ch[c]) - v
             done.append(f"imu_offset: {c} {-v:+.4g}")
         out = dataclasses.replace(w, channels=ch)
+    if "align_gyro" in fixes and w.has("imu_gz"):  # measured after the flip and the offset, like them
+        from bench.real.clock import offsets, shift_stream
+
+        s = offsets(out if measure_on is None else out.subset(np.asarray(measure_on, bool))).get("imu_gz", 0.0)
+        out = shift_stream(out, "imu_gz", s)
+        done.append(f"align_gyro: imu_gz read {s:+.1f} samples ({1000 * s * w.dt:+.0f} ms) from its stamp")
     if "drop_stale" in fixes and w.has("ref_x"):
         stale = _stale(out)
         out = out.subset(~stale)

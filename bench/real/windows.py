@@ -22,6 +22,8 @@ from bench.real.drive import DriveWindows
 from bench.run import wrap_angle
 
 MIN_TURN = 0.2  # [rad] a steady window must turn this much for chi (eq. (25)) to be measured
+#: the rows of the ICR family, whose best the real benchmark's verdict sets against ideal differential drive
+ICR_FAMILY = ("icr_sym_chi", "mandow2007_icr", "wang2015_chi_curve")
 
 Pose = tuple[np.ndarray, np.ndarray, np.ndarray]
 
@@ -99,9 +101,17 @@ def integrate_windows(dt: float, vx: np.ndarray, vy: np.ndarray, wz: np.ndarray,
     return x0 + c * xr - s * yr, y0 + s * xr + c * yr, yaw0 + yawr
 
 
+INPUTS = ("enc_wl", "enc_wr", "cmd_wl", "cmd_wr", "imu_gz")  # what the window models read, where the table has it
+
+
 def valid_windows(w: DriveWindows) -> np.ndarray:
-    """Windows whose wheel speeds (samples used by the integration) and ICP start/end pose are finite."""
-    ok = np.isfinite(w["enc_wl"][:, :-1]).all(axis=1) & np.isfinite(w["enc_wr"][:, :-1]).all(axis=1)
+    """Windows whose inputs (:data:`INPUTS` the table has: wheel speeds, commands, gyro; every sample, as either
+    reading of the wheel speeds' stamps uses a different end) and ICP start/end pose are finite: a NaN in one
+    sample drops the window for every model alike (the comparisons stay paired), never one model's row."""
+    ok = np.ones(w.n_windows, bool)
+    for c in INPUTS:
+        if w.has(c):
+            ok &= np.isfinite(w[c]).all(axis=1)
     for c in ("ref_x", "ref_y", "ref_yaw"):
         ok &= np.isfinite(w[c][:, 0]) & np.isfinite(w[c][:, -1])
     return ok

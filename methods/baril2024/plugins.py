@@ -17,6 +17,7 @@ import numpy as np
 
 from bench.registry import Estimate, make_estimate
 from bench.run import Run, RunError
+from bench import registry
 from methods.baselines import dead_reckon, encoder_speeds, has_reference, held_integral, initial_pose, \
     platform_geometry, reference_poses
 from methods.baril2024.slip_blr import BayesianLinearRegression, SlipBlr, Velocities, body_twist, idd_velocities
@@ -28,7 +29,7 @@ PAPER = "Baril et al. 2024 (DRIVE)"
 REFERENCE = frozenset({"ref_x", "ref_y", "ref_yaw"})
 
 
-class NotCalibratedError(RuntimeError):
+class NotCalibratedError(registry.NotCalibratedError):
     """``baril2024.blr_slip`` was asked to estimate before its slip regressions were fitted."""
 
 

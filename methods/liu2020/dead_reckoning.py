@@ -37,7 +37,7 @@ from typing import Any, ClassVar, Mapping, Sequence
 import numpy as np
 
 from bench.kinematics import icr_forward, integrate_se2
-from bench.registry import Estimate, make_estimate
+from bench.registry import Estimate, NotCalibratedError, make_estimate
 from bench.run import Run, RunError
 from methods.liu2020.icr import slip_rates
 from methods.liu2020.inputs import (
@@ -129,7 +129,8 @@ class IcrDr:
     def estimate(self, run: Run) -> Estimate:
         _check_channels(run, self.requires, self.name)
         if self.y_l is None or self.y_r is None or self.x_icr is None:
-            raise RuntimeError(f"{self.name}: ICR locations unknown; call calibrate(runs) or pass y_l, y_r, x_icr")
+            raise NotCalibratedError(f"{self.name}: ICR locations unknown; call calibrate(runs) or pass y_l, y_r, "
+                                     "x_icr")
         g = geometry(run)
         if not self.y_l - self.y_r > 0:
             raise ValueError(f"{self.name}: y_l - y_r = {self.y_l - self.y_r!r} must be > 0")
@@ -228,7 +229,8 @@ class SlipDr:
     def estimate(self, run: Run) -> Estimate:
         _check_channels(run, self.requires, self.name)
         if self.s_l is None or self.s_r is None or self.beta is None:
-            raise RuntimeError(f"{self.name}: slip parameters unknown; call calibrate(runs) or pass s_l, s_r, beta")
+            raise NotCalibratedError(f"{self.name}: slip parameters unknown; call calibrate(runs) or pass s_l, s_r, "
+                                     "beta")
         g = geometry(run)
         t = run.t
         v_l = g.wheel_radius * _interval_speed(run["enc_wl"])

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 from bench.registry import Estimate
 from bench.run import Run
+from bench import registry
 from methods.mandow2007.ga import DeSettings, GaSettings, GeneRanges, Identification, identify_de, identify_ga
 from methods.mandow2007.kinematics import IcrParams, dead_reckoning
 from methods.mandow2007.p3at import P3AT_DEFAULT
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
 PAPER = "Mandow et al. 2007"
 
 
-class NotCalibratedError(RuntimeError):
+class NotCalibratedError(registry.NotCalibratedError):
     """A plugin that needs identified parameters was asked to estimate before calibration."""
 
 

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 from bench.registry import Estimate
 from bench.run import Run
+from bench import registry
 from methods.wang2015.chi import CURVATURE_RATIO_MAX, ChiCurve, ChiIdentification, identify_chi_curve
 from methods.wang2015.kinematics import CHI_P3AT_DEFAULT, _estimate
 
@@ -22,7 +23,7 @@ if TYPE_CHECKING:
 PAPER = "Wang et al. 2015"
 
 
-class NotCalibratedError(RuntimeError):
+class NotCalibratedError(registry.NotCalibratedError):
     """``wang2015.chi_lambda`` was asked to estimate before its (a, b) were identified."""
 
 
