@@ -33,6 +33,7 @@ hash or :func:`~bench.spec.to_dict`: a source is provenance, not physics).
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +45,8 @@ __all__ = ["SOURCE_KINDS", "OVERRIDE", "DESCRIPTIVE", "DEFAULT_REFS", "Source", 
            "file_sources", "override_sources", "default_sources"]
 
 SOURCE_KINDS = ("paper", "datasheet", "calibration", "real", "testbed", "chosen")
+#: the kinds whose value the testbed chose, and which may name an alternative for the sensitivity study
+ALTERNATIVE_KINDS = ("chosen", "testbed")
 OVERRIDE = "override"  # set by a scenario's overrides or --set; never written in a platform / terrain file
 DESCRIPTIVE = ("name", "source")  # file keys that describe, not parameterise
 _CLAIM = re.compile(r"^[a-z][a-z0-9_]*\.[A-Za-z0-9_]+$")
@@ -123,9 +126,10 @@ DEFAULT_REFS: dict[str, str] = {
 
 @dataclass(frozen=True)
 class Source:
-    """Where a parameter's value comes from.  A ``chosen`` one names the ``claims`` it was chosen for, and may name an
-    ``alternative`` value (as the file writes it, with ``alternative_ref``: why that one) that the sensitivity study
-    (:mod:`bench.reproduce.sensitivity`) runs the papers at, to show which verdicts the choice decides."""
+    """Where a parameter's value comes from.  A ``chosen`` one names the ``claims`` it was chosen for.  A ``chosen`` or
+    ``testbed`` one (a value the testbed chose, not measured) may name an ``alternative`` value (as the file writes it,
+    with ``alternative_ref``: why that one) that the sensitivity study (:mod:`bench.reproduce.sensitivity`) runs the
+    papers at, to show which verdicts the choice decides."""
 
     kind: str
     ref: str
@@ -242,8 +246,9 @@ def _source(entry: Any, file: Path | str, field: str, value: Any, kinds: tuple[s
         raise SpecError(file, field, value, f"only a 'chosen' source lists claims (kind is {kind!r})")
     alt, alt_ref = entry.get("alternative"), entry.get("alternative_ref", "")
     if alt is not None or alt_ref:
-        if kind != "chosen":
-            raise SpecError(file, field, value, f"only a 'chosen' source names an alternative (kind is {kind!r})")
+        if kind not in ALTERNATIVE_KINDS:
+            raise SpecError(file, field, value, f"only a 'chosen' or 'testbed' source names an alternative (kind is "
+                                                f"{kind!r})")
         if not isinstance(alt_ref, str) or not alt_ref.strip() or alt is None:
             raise SpecError(file, field, value, "an alternative needs both alternative = <value> and "
                                                 "alternative_ref = \"why this value\"")
@@ -286,7 +291,13 @@ def file_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]
     entries = dict(_entries(raw))
     for key, entry in entries.items():
         if key not in params:
-            raise SpecError(file, f"sources.{key}", entry, "a source for a parameter the file does not set")
+            # most often a parameter's name misspelt above its [sources] entry: name that parameter, not the entry
+            unsourced = [k for k in params if k not in entries]
+            near = difflib.get_close_matches(key, unsourced, n=1, cutoff=0.6)
+            if near:
+                raise SpecError(file, near[0], params[near[0]], f"not a known parameter name: did you mean {key}?")
+            raise SpecError(file, f"sources.{key}", entry.get("kind") if isinstance(entry, Mapping) else entry,
+                            "a source for a parameter the file does not set")
     out = {}
     for key, value in params.items():
         if key not in entries:

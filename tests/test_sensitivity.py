@@ -72,8 +72,30 @@ def test_choices_group_the_parameters_chosen_for_the_same_claims(tmp_path):
     assert {(e.key, e.value, e.alternative) for e in c.edits} == {("mass", 10.0, 12.0), ("motor.max_current", 120.0, 60.0)}
 
 
+def test_testbed_values_with_an_alternative_are_a_choice_of_their_own(tmp_path):
+    """Testbed values (no claim in view) that declare the same alternative change together, apart from the chosen
+    ones; a testbed value without an alternative is not run; their choice names no claim (none is a target)."""
+    _chosen(tmp_path)
+    terr = tmp_path / "terrains" / "ground.toml"
+    terr.write_text(textwrap.dedent('''
+        name = "ground"
+        mu_lat_ratio = 1.06
+        shear_modulus_lat_ratio = 1.4
+        rolling = 0.01
+        [sources]
+        mu_lat_ratio = {kind = "testbed", ref = "t", alternative = 1.0, alternative_ref = "isotropic"}
+        shear_modulus_lat_ratio = {kind = "testbed", ref = "t", alternative = 1.0, alternative_ref = "isotropic"}
+        rolling = {kind = "testbed", ref = "t"}
+    '''))
+    got = choices(tmp_path)
+    assert [c.claims for c in got] == [(), ("p.a",)]
+    testbed, = [c for c in got if not c.claims]
+    assert {(e.file, e.key, e.value, e.alternative) for e in testbed.edits} == {
+        ("terrains/ground.toml", "mu_lat_ratio", 1.06, 1.0), ("terrains/ground.toml", "shear_modulus_lat_ratio", 1.4, 1.0)}
+
+
 @pytest.mark.parametrize("entry, field", [
-    ('{kind = "paper", ref = "r", alternative = 1.0, alternative_ref = "w"}', "only a 'chosen' source"),
+    ('{kind = "paper", ref = "r", alternative = 1.0, alternative_ref = "w"}', "only a 'chosen' or 'testbed' source"),
     ('{kind = "chosen", ref = "r", claims = ["p.a"], alternative = 1.0}', "alternative_ref"),
     ('{kind = "chosen", ref = "r", claims = ["p.a"], alternative = "x", alternative_ref = "w"}', "type"),
 ])
@@ -160,14 +182,14 @@ def test_the_study_and_the_report_mark_a_verdict_a_choice_decides(tmp_path, monk
     head = report.split("## Headline claims")[1].split("## Per paper")[0]
     fails = next(ln for ln in head.splitlines() if "double < speed" in ln)
     order = next(ln for ln in head.splitlines() if "speed < double" in ln)
-    assert "decided by a chosen parameter" in fails and "bot.mass" in fails
-    assert "decided by a chosen parameter" not in order
-    assert "verdicts decided by a chosen parameter" in report.split("## Per paper")[1]
+    assert "decided by a testbed choice" in fails and "bot.mass" in fails
+    assert "decided by a testbed choice" not in order
+    assert "verdicts decided by a testbed choice" in report.split("## Per paper")[1]
     details = (out / "p" / "claims_details.md").read_text()
     fails_part = details.split('<a id="claim-fails"></a>')[1]
     order_part = details.split('<a id="claim-order"></a>')[1].split("<a id=")[0]
-    assert "decided by a chosen parameter: at bot.mass = 12.0, bot.motor.max_current = 60.0" in fails_part
-    assert "it holds:" in fails_part and "decided by a chosen parameter" not in order_part
+    assert "decided by a testbed choice: at bot.mass = 12.0, bot.motor.max_current = 60.0" in fails_part
+    assert "it holds:" in fails_part and "decided by a testbed choice" not in order_part
 
 
 def test_the_study_runs_with_extended_only(capsys):

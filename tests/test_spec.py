@@ -279,6 +279,19 @@ def test_a_source_for_a_parameter_the_file_does_not_set_is_an_error(tmp_path):
         load_terrain(path)
 
 
+def test_a_misspelt_parameter_is_named_not_its_source(tmp_path):
+    """stall_torqe = 1.95 above a [sources] entry for stall_torque: the error names the misspelt parameter and the
+    name it should have, not the source entry that no longer finds it."""
+    src = (SCENARIO_DIR / "platforms" / "p3at_pneumatic_20psi.toml").read_text()
+    assert "\nstall_torque = " in src
+    path = tmp_path / "bot.toml"
+    path.write_text(src.replace("\nstall_torque = ", "\nstall_torqe = ", 1))
+    with pytest.raises(SpecError) as ei:
+        load_platform(path)
+    msg = str(ei.value)
+    assert "field 'motor.stall_torqe'" in msg and "did you mean motor.stall_torque?" in msg and "\n" not in msg
+
+
 def test_overrides_get_an_override_source_and_leave_the_physics_hash_alone():
     from bench.sim import scenario_hash
 

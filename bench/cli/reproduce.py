@@ -33,7 +33,8 @@ from bench.report.io import atomic_write_text
 
 # ------------------------------------------------------------------------------------------ reproduce
 def _repro_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml); default all")
+    p.add_argument("papers", nargs="*", help="paper ids (scenarios/papers/<id>.toml) and extras (league, stress, "
+                   "real, gap; sensitivity with --extended); default all")
     p.add_argument("--all", action="store_true", help="every paper, the league table, the gap example, the real data and the stress report")
     p.add_argument("--quick", action="store_true", help="shorter runs / fewer seeds (CI); default output folder results/quick/")
     p.add_argument("--extended", action="store_true",

@@ -195,8 +195,9 @@ def decided_lines(results_dir: Path) -> dict[str, list[str]]:
         out: dict[str, list[str]] = {}
         for c, r in _decided(doc):
             at = ", ".join(f"{e['name']} = {e['alternative']!r}" for e in c["edits"])
+            why = f"chosen for {', '.join(c['claims'])}" if c["claims"] else "a testbed choice, no claim in view"
             out.setdefault(r["claim"], []).append(
-                f"- decided by a chosen parameter: at {at} (chosen for {', '.join(c['claims'])}) it "
+                f"- decided by a testbed choice: at {at} ({why}) it "
                 f"{r['alternative']}: {r['alternative_measured']} ([the sensitivity study](../"
                 f"{SENSITIVITY_LINK}), commit `{str(doc.get('commit', '?'))[:12]}`)")
         return out
@@ -383,8 +384,9 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         "that fails inside it is marked *not refuted*: the data cannot tell it from the bound, and *the means favour the claim* when it fails by the "
         "interval alone; a quick run's fewer seeds and shorter runs may give a cause of their own), *calibration target* (a testbed parameter was chosen "
         "to produce this outcome: never counted as a verdict), *not evaluated* (a metric is missing). Checks of our own (NEES, NaN, outages) "
-        "are listed apart, per paper. A verdict marked *decided by a chosen parameter* changes when a parameter "
-        f"chosen for another claim takes its declared alternative ([the sensitivity study]({SENSITIVITY_LINK}), "
+        "are listed apart, per paper. A verdict marked *decided by a testbed choice* changes when a parameter the "
+        "testbed chose (for another claim, or with no published value) takes its declared alternative "
+        f"([the sensitivity study]({SENSITIVITY_LINK}), "
         "`reproduce --extended`): it holds or fails at the testbed's choice, not at a published number.", "",
         "## Headline claims", "", "| paper | claim | verdict | cause | key numbers |", "|---|---|---|---|---|",
     ]
@@ -397,7 +399,7 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
         for c in heads:
             more = f"{res.paper}/{DETAILS}#claim-{c['id']}"
             by = decided.get(f"{res.paper}.{c['id']}")
-            mark = f" *decided by a chosen parameter* ([{', '.join(sorted(set(by)))}]({SENSITIVITY_LINK}))" if by else ""
+            mark = f" *decided by a testbed choice* ([{', '.join(sorted(set(by)))}]({SENSITIVITY_LINK}))" if by else ""
             lines.append(f"| [{res.paper}]({res.paper}/README.md) | {cell(c['text'], more)} | {_verdict(c)}{mark} "
                          f"| {_cause(c, more, with_note=False)} | {cell(c['measured'], more)} |")
     lines += ["", "## Per paper", ""]
@@ -419,7 +421,7 @@ def write_report(results: list[PaperResult], results_dir: Path, quick: bool, run
             lines.append(f"- calibration targets: {', '.join(targets)}")
         if sens and res.paper in sens[1]:
             mine = sorted(k.split(".", 1)[1] for k in decided if k.startswith(res.paper + "."))
-            lines.append(f"- verdicts decided by a chosen parameter (they change at its alternative; last extended "
+            lines.append(f"- verdicts decided by a testbed choice (they change at its alternative; last extended "
                          f"run, commit `{sens[2]}`, [sensitivity]({SENSITIVITY_LINK})): {', '.join(mine) or 'none'}")
         lines += [f"- {len(res.tables)} tables, {len(res.figures)} figures, every claim in detail: "
                   f"[{res.paper}/{DETAILS}]({res.paper}/{DETAILS}); computed in {res.seconds:.1f} s", ""]

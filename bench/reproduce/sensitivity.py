@@ -4,9 +4,10 @@ A parameter of kind ``chosen`` (:mod:`bench.sources`) was set to produce an outc
 calibration targets, never verdicts.  The same value shapes every other run on that platform or terrain, so a
 verdict it was not chosen for may still hang on it.  This study makes that visible (``reproduce --extended``):
 
-1. **Choices.**  The chosen parameters of the platform and terrain files that declare an ``alternative`` (with
-   ``alternative_ref``: why that value, e.g. the value before the choice), grouped by the claims they name:
-   parameters chosen for the same claims were chosen together and change together (:func:`choices`).
+1. **Choices.**  The parameters of kind ``chosen`` or ``testbed`` (a value the testbed chose) of the platform and
+   terrain files that declare an ``alternative`` (with ``alternative_ref``: why that value, e.g. the value before
+   the choice, or the papers' law), grouped by the claims they name, a ``testbed`` choice (no claims) by its
+   ``alternative_ref``: parameters chosen together change together (:func:`choices`).
 2. **Runs.**  For each choice, the papers whose runs use one of its files (by the platform and terrain names of the
    base run's ``runs_manifest.json``) are reproduced in a child process on a copy of the scenario folder with the
    alternatives written in (``SKIDBENCH_SCENARIOS``; :func:`run_choice`).  The run cache is shared: a run whose
@@ -35,7 +36,7 @@ from typing import Any, Mapping, Sequence
 from bench.paths import SCENARIO_DIR, default_results
 from bench.report.io import atomic_write_text, dumps_json
 from bench.schema import read_toml
-from bench.sources import file_sources, parameters
+from bench.sources import ALTERNATIVE_KINDS, file_sources, parameters
 
 __all__ = ["Edit", "Choice", "choices", "set_value", "papers_using", "run_choice", "flips", "run_sensitivity",
            "base_files"]
@@ -60,7 +61,8 @@ class Edit:
 
 @dataclass(frozen=True)
 class Choice:
-    """The chosen parameters that name the same claims, with their alternatives."""
+    """The parameters chosen together (naming the same claims; or, with none, the same alternative), with their
+    alternatives."""
 
     claims: tuple[str, ...]
     edits: tuple[Edit, ...]
@@ -76,16 +78,17 @@ class Choice:
 
 def choices(root: Path = SCENARIO_DIR) -> list[Choice]:
     """Every choice of the platform and terrain files under ``root`` that declares alternatives (module doc)."""
-    groups: dict[tuple[str, ...], list[Edit]] = {}
+    groups: dict[tuple[tuple[str, ...], str], list[Edit]] = {}
     for folder in FOLDERS:
         for path in sorted((Path(root) / folder).glob("*.toml")):
             data = read_toml(path, f"{folder[:-1]} file")
             values = dict(parameters(data))
             for key, src in file_sources(data, path).items():
-                if src.kind == "chosen" and src.alternative is not None:
-                    groups.setdefault(tuple(sorted(src.claims)), []).append(
+                if src.kind in ALTERNATIVE_KINDS and src.alternative is not None:
+                    group = (tuple(sorted(src.claims)), "" if src.claims else src.alternative_ref)
+                    groups.setdefault(group, []).append(
                         Edit(f"{folder}/{path.name}", key, values[key], src.alternative, src.alternative_ref))
-    return [Choice(claims, tuple(edits)) for claims, edits in sorted(groups.items())]
+    return [Choice(claims, tuple(edits)) for (claims, _), edits in sorted(groups.items())]
 
 
 def _toml_value(v: Any) -> str:
@@ -183,8 +186,9 @@ def flips(base: Mapping[str, Any], alt: Mapping[str, Any], papers: Sequence[str]
 
 
 def _markdown(doc: Mapping[str, Any]) -> str:
-    lines = ["# Verdicts a chosen testbed parameter decides", "",
-             "Each choice (the chosen parameters that name the same claims) is set to its declared alternative and "
+    lines = ["# Verdicts a testbed choice decides", "",
+             "Each choice (the chosen parameters that name the same claims; or testbed values set together, with no "
+             "claim in view, that declare the same alternative) is set to its declared alternative and "
              "the papers that run on it are reproduced; a claim is listed when its verdict changes. A calibration "
              "target that changes is what its parameter was chosen for; **any other change is a verdict that holds "
              "or fails at the testbed's choice**, not at a published number "
@@ -194,7 +198,8 @@ def _markdown(doc: Mapping[str, Any]) -> str:
              + ".", ""]
     for c in doc["choices"]:
         files = sorted({e["name"].split(".", 1)[0] for e in c["edits"]})
-        lines += [f"## {', '.join(files)}", "", f"Chosen for: {', '.join(c['claims'])}.", ""]
+        lines += [f"## {', '.join(files)}", "", f"Chosen for: {', '.join(c['claims'])}." if c["claims"] else
+                  "A testbed choice: no claim in view (kind `testbed`); its alternative is the value below.", ""]
         lines += [f"- `{e['name']}` = {e['value']!r} -> {e['alternative']!r}: {e['why']}" for e in c["edits"]] + [""]
         if not c["papers"]:
             lines += ["No paper runs on these files.", ""]
