@@ -282,6 +282,29 @@ def test_a_nan_in_any_input_drops_the_window_for_every_model(clean, tmp_path, co
     assert all(np.isfinite(m["stats"]["all"][e]["median"]) for m in res["models"].values() for e in ("trans", "yaw"))
 
 
+def test_data_sets_take_every_table_format_and_the_league_runs_without_the_husky(clean, tmp_path, monkeypatch, capsys):
+    """A data folder with a platform.toml and a DRIVE table in any format the reader takes (.parquet, .pkl, .csv) is a
+    data set; a README beside it is not; with no Husky table the real stage still scores the others."""
+    from bench.cli.real import _extra_real
+    from bench.real.league import data_sets
+
+    root = tmp_path / "data"
+    bot = root / "bot"
+    bot.mkdir(parents=True)
+    (bot / "platform.toml").write_text('name = "bot"\nwheel_radius = 0.165\ntrack = 0.55\n')
+    clean[1].to_parquet(bot / "a.parquet")
+    for name in ("b.csv", "c.pkl", "README.md"):
+        (bot / name).write_text("")
+    assert [(t.name, p.name) for t, p in data_sets(root)] == [(n, "platform.toml") for n in ("a.parquet", "b.csv",
+                                                                                              "c.pkl")]
+    for name in ("b.csv", "c.pkl"):
+        (bot / name).unlink()
+    monkeypatch.setenv("SKIDBENCH_DATA", str(root))
+    _extra_real(tmp_path / "results", quick=True)
+    league = (tmp_path / "results" / "real" / "league.md").read_text()
+    assert "## bot: `bot/a.parquet`" in league and "no Husky table" in capsys.readouterr().out
+
+
 def test_bootstrap_interval_over_steps_is_the_percentiles_of_resampled_medians():
     from bench.real.league import _resample, bootstrap_median
 

@@ -34,7 +34,16 @@ def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # se
 
     table = data_root() / "drive_husky" / "husky_windows.parquet"
     if not table.is_file():
-        print(f"real: skipped, no data at {table} (set SKIDBENCH_DATA to the folder holding drive_husky/)")
+        from bench.real.league import data_sets
+
+        if not data_sets(data_root()):
+            print(f"real: skipped, no data at {data_root()} (set SKIDBENCH_DATA to the folder holding drive_husky/ "
+                  "or folders with a DRIVE table and a platform.toml)")
+            return
+        from bench.reproduce.publish import final_dir
+
+        league = write_real_league(data_root(), results_dir / "real")  # the other robots' data sets; no Husky gap
+        print(f"real: {final_dir(results_dir) / 'real' / Path(league).name} (no Husky table at {table})")
         return
     res = run_real_benchmark(table, results_dir / "real", models=every_window_plugin())
     from bench.reproduce.publish import final_dir

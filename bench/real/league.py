@@ -23,6 +23,7 @@ import numpy as np
 __all__ = ["KNOWN", "data_sets", "step_draws", "bootstrap_median", "paired_median_difference", "comparison",
            "league_markdown", "write_real_league"]
 
+TABLE_SUFFIXES = (".parquet", ".pkl", ".pickle", ".csv")  # what bench.real.drive reads (a run too, as .parquet)
 KNOWN = {"drive_husky/husky_windows.parquet": "husky"}  # table -> platform name (its README names the robot)
 N_BOOT = 1000
 SEED = 0
@@ -35,7 +36,7 @@ def data_sets(root: Path) -> list[tuple[Path, str | Path]]:
         if (root / rel).is_file():
             out.append((root / rel, plat))
     for toml in sorted(root.glob("*/platform.toml")):
-        for table in sorted(toml.parent.glob("*.parquet")):
+        for table in sorted(p for p in toml.parent.iterdir() if p.suffix.lower() in TABLE_SUFFIXES):
             if table.relative_to(root).as_posix() not in KNOWN:
                 out.append((table, toml))
     return out
