@@ -202,6 +202,17 @@ def test_second_reproduce_comes_from_the_result_cache(paper_dir, tmp_path):
     assert second.metrics == first.metrics
     for name in ("t1.md", "t1_extra.md"):  # also the files the compute function wrote itself
         assert (tmp_path / "a" / "fake" / name).read_bytes() == (tmp_path / "b" / "fake" / name).read_bytes()
+    # and the manifest still lists the runs the numbers come from (an empty runs_manifest.json had been written)
+    assert runner.manifest["runs"] and runner2.manifest == runner.manifest
+
+
+def test_a_cached_reproduce_writes_the_same_runs_manifest(paper_dir, tmp_path):
+    """reproduce_papers twice into two folders: the second takes the paper from the result cache and writes the same
+    runs_manifest.json, byte for byte."""
+    for out in ("a", "b"):
+        R.reproduce(["fake"], results_dir=tmp_path / out, cache_dir=tmp_path / "cache", log=lambda s: None)
+    a, b = ((tmp_path / out / "runs_manifest.json").read_text() for out in ("a", "b"))
+    assert json.loads(a)["runs"] and a == b
 
 
 @pytest.mark.parametrize("paper", R.list_papers())

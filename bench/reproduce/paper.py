@@ -166,6 +166,7 @@ class PaperResult:
     seconds: float
     info: dict[str, Any]
     file_bytes: dict[str, bytes] = field(default_factory=dict)  # results-relative path -> bytes this computation wrote
+    manifest: dict[str, Any] = field(default_factory=dict)  # the runs it was computed from (Runner.manifest_of)
 
 
 def _result_cache(runner: Runner) -> Path:
@@ -208,6 +209,7 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     if use_cache and (hit := _cached_result(_result_cache(runner), paper, key)) is not None:
         log(f"{paper}: unchanged since the last run, results taken from the cache")
         runner.stats["result_cache_hits"] = runner.stats.get("result_cache_hits", 0) + 1
+        runner.add_manifest(hit.manifest)  # runs_manifest.json lists the runs the numbers come from, cached or not
         _copy_files(hit, out_dir)
         write_paper(hit, out_dir)  # after: its files may read what changed since (the sensitivity study's marks)
         return hit
@@ -215,6 +217,7 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     before = _file_stamps(out_dir)
     module = importlib.import_module(decl["module"])
     runner.served.clear()
+    runner.served_keys.clear()
     metrics: dict[str, float] = {}
     t0 = time.perf_counter()
     tables = []
@@ -247,7 +250,8 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     served = sorted(set(runner.served))
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
-    res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info)
+    res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info,
+                      manifest=runner.manifest_of(runner.served_keys))
     write_paper(res, out_dir)
     # every file this computation wrote (tables, notes, figures, the compute functions' own files): a cache hit
     # writes them back, also into another results folder

@@ -15,7 +15,7 @@ import hashlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Callable, Mapping, Sequence
 
 from bench.paths import CHECKOUT as REPO, PACKAGE, default_cache
 from bench.procs import process_pool
@@ -101,6 +101,7 @@ class Runner:
                                                  "result_cache_hits": 0, "stages": {}})
     manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})  # + cpu_dispatch when served
     served: list = field(default_factory=list)  # (scenario id, seed) of every run handed out
+    served_keys: list = field(default_factory=list)  # the run-cache key of every run handed out (the manifest's)
 
     def path_for(self, scn: Scenario, seed: int) -> Path:
         return Path(self.cache_dir) / f"{cache_key(scn, seed)}.parquet"
@@ -143,8 +144,26 @@ class Runner:
         self.manifest["cpu_dispatch"] = dispatch_state()
         self.manifest["scenarios"].setdefault(sh, dict(to_dict(scn), source_file=portable_source(scn.source_file)))
         self.served.append((scn.id, int(seed)))
+        self.served_keys.append(key)
         self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
                                       "content_hash": run.content_hash()}
+
+    def manifest_of(self, keys: Sequence[str]) -> dict:
+        """The part of :attr:`manifest` the runs ``keys`` take (their runs, scenarios and CPU dispatch): what a paper
+        served, kept with its cached result so that a cache hit still writes the runs its numbers come from."""
+        runs = {k: self.manifest["runs"][k] for k in sorted(set(keys))}
+        out = {"scenarios": {r["scenario_hash"]: self.manifest["scenarios"][r["scenario_hash"]] for r in runs.values()},
+               "runs": runs}
+        if runs and "cpu_dispatch" in self.manifest:
+            out["cpu_dispatch"] = self.manifest["cpu_dispatch"]
+        return out
+
+    def add_manifest(self, part: Mapping) -> None:
+        """Merge a paper's :meth:`manifest_of` (from a cached result) into :attr:`manifest`."""
+        self.manifest["scenarios"].update(part.get("scenarios", {}))
+        self.manifest["runs"].update(part.get("runs", {}))
+        if "cpu_dispatch" in part:
+            self.manifest["cpu_dispatch"] = part["cpu_dispatch"]
 
     def _compute(self, todo: dict[Path, tuple[Scenario, int]]) -> None:
         from bench.cpu import dispatch_state
