@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import textwrap
 import tomllib
+from pathlib import Path
 
 import pytest
 
@@ -245,3 +246,17 @@ def test_the_child_run_reads_the_alternative_and_writes_only_its_own_folder(tmp_
     assert speed(same) == pytest.approx(0.2, rel=0.05)
     assert speed(weak) < 0.9 * speed(same)
     assert {p: p.stat().st_mtime_ns for p in default_results().glob("*.json")} == before
+
+
+def test_a_choice_of_many_parameters_keeps_the_headline_cell_short():
+    """The lateral tire ratios of ten terrains (20 parameters) name their keys and the number of files; a choice of
+    up to three is named in full; the committed report has no cell over the limit."""
+    from bench.report.cells import long_cells
+    from bench.reproduce.report import choice_label
+
+    many = [{"name": f"t{i}.{k}"} for i in range(10) for k in ("mu_lat_ratio", "shear_modulus_lat_ratio")]
+    assert choice_label(many) == ["mu_lat_ratio, shear_modulus_lat_ratio of 10 files"]
+    few = [{"name": "dubhe.motor.max_current"}, {"name": "tile.model"}]
+    assert choice_label(few) == ["dubhe.motor.max_current", "tile.model"]
+    report = Path(__file__).resolve().parent.parent / "results" / "REPORT.md"
+    assert long_cells(report.read_text()) == []

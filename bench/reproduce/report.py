@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 from bench.report.cells import CELL_LIMIT, cell, long_cells
 from bench.report.io import atomic_write_json, atomic_write_text, dumps_json
@@ -349,6 +349,16 @@ def _extended_verdicts(results_dir: Path, res: PaperResult) -> str:
     return f"their claims in the last extended run (commit `{commit}`): {', '.join(parts)}" if parts else ""
 
 
+def choice_label(edits: Sequence[Mapping[str, Any]]) -> list[str]:
+    """How a headline cell names a choice: its parameters (``<file>.<key>``), or, for a choice of more than three,
+    its keys and the number of files (the lateral tire ratios of ten terrains), so that the cell stays short."""
+    names = [str(e["name"]) for e in edits]
+    if len(names) <= 3:
+        return names
+    keys = sorted({n.split(".", 1)[1] for n in names})
+    return [f"{', '.join(keys)} of {len({n.split('.', 1)[0] for n in names})} files"]
+
+
 def _sensitivity(results_dir: Path) -> tuple[dict[str, list[str]], set[str], str] | None:
     """From the last extended run's sensitivity study (``results/extended/sensitivity.json``,
     :mod:`bench.reproduce.sensitivity`): {claim: the chosen parameters whose alternative changes its verdict} for the
@@ -357,7 +367,7 @@ def _sensitivity(results_dir: Path) -> tuple[dict[str, list[str]], set[str], str
     try:
         decided: dict[str, list[str]] = {}
         for c, r in _decided(doc):
-            decided.setdefault(r["claim"], []).extend(e["name"] for e in c["edits"])
+            decided.setdefault(r["claim"], []).extend(choice_label(c["edits"]))
         return decided, {p for c in doc["choices"] for p in c["papers"]}, str(doc.get("commit", "?"))[:12]
     except (KeyError, TypeError):
         return None
