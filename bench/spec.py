@@ -15,6 +15,7 @@ Every parameter of a platform or terrain file names its source in the file's ``[
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import math
 import tomllib
 import types
@@ -497,6 +498,12 @@ def _resolve(name_or_path: str | Path, folder: Path) -> Path:
 def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[Path, dict[str, Any]]:
     """The raw merged dict of a scenario: its platform and terrain files inlined as tables."""
     path = _resolve(name_or_path, root)
+    p = Path(name_or_path)
+    if not path.exists() and p.suffix != ".toml" and len(p.parts) == 1:  # a bare name that is no scenario
+        near = difflib.get_close_matches(str(name_or_path), list_scenarios(root), n=3)
+        hint = f"did you mean {' or '.join(near)}? " if near else ""
+        raise SpecError("<scenario name>", "scenario", str(name_or_path),
+                        f"unknown scenario; {hint}(`skidbench list` shows them all, or give the path of a .toml file)")
     raw = read_toml(path)
     data = dict(raw)
     for key, folder, cls in (("platform", "platforms", Platform), ("terrain", "terrains", Terrain)):

@@ -120,6 +120,25 @@ def test_compare_names_a_malformed_metric(tmp_path, capsys, entry, field) -> Non
         assert str(bad) in err and f"'{field}'" in err
 
 
+def test_compare_of_one_paper_against_the_full_baseline(tmp_path, capsys) -> None:
+    """A one-paper reproduce lacks the other papers' metrics: without --papers they are 'missing in new'; with it
+    only that paper is compared, and a moved metric of it is still a regression; an unknown id is one line."""
+    m = lambda v: {"value": v, "tolerance": {"abs": 0.01}}  # noqa: E731
+    base, new = tmp_path / "base.json", tmp_path / "new.json"
+    base.write_text(json.dumps({"metrics": {"yu2010.t.a": m(1.0), "yi2009.t.b": m(2.0)}}))
+    new.write_text(json.dumps({"metrics": {"yu2010.t.a": m(1.005)}}))
+    assert main(["compare", str(base), str(new)]) == 1
+    assert "yi2009.t.b" in capsys.readouterr().out
+    assert main(["compare", str(base), str(new), "--papers", "yu2010"]) == 0
+    assert "1 compared" in capsys.readouterr().out
+    new.write_text(json.dumps({"metrics": {"yu2010.t.a": m(1.5)}}))
+    assert main(["compare", str(base), str(new), "--papers", "yu2010"]) == 1
+    capsys.readouterr()
+    assert main(["compare", str(base), str(new), "--papers", "yu2011"]) == 2
+    err = _one_line(capsys)
+    assert "--papers" in err and "yu2011" in err and "yu2010" in err
+
+
 @pytest.mark.parametrize("runs, field", [([1], "runs"), ({"k": 3}, "runs.k"),
                                          ({"k": {"scenario_hash": "h", "seed": -1, "content_hash": "0"}}, "runs.k.seed"),
                                          ({"k": {"scenario_hash": "zz", "seed": 0, "content_hash": "0"}},

@@ -89,3 +89,17 @@ def test_data_sets_take_every_table_format_and_the_league_runs_without_the_husky
     _extra_real(tmp_path / "results", quick=True)
     league = (tmp_path / "results" / "real" / "league.md").read_text()
     assert "## bot: `bot/a.parquet`" in league and "no Husky table" in capsys.readouterr().out
+
+
+def test_a_report_is_named_only_once_every_table_is_scored(clean, tmp_path, capsys):
+    """`real good bad`: the second table fails, nothing is published, and no report path is printed (the first one's
+    would name a file that never appears); with two good tables both paths are printed after the scoring."""
+    bad = tmp_path / "bad.parquet"
+    bad.write_bytes(b"not parquet")
+    out = tmp_path / "o"
+    assert main(["real", str(clean[0]), str(bad), "--platform", "husky", "--out", str(out), "--no-figures"]) == 2
+    printed = capsys.readouterr().out
+    assert "-> " not in printed and (not out.exists() or not any(out.iterdir()))
+    assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(out), "--no-figures"]) == 0
+    arrows = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("-> ")]
+    assert len(arrows) == 1 and (out / arrows[0][3:].split("/")[-1]).is_file()

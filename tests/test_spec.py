@@ -279,6 +279,13 @@ def test_a_source_for_a_parameter_the_file_does_not_set_is_an_error(tmp_path):
         load_terrain(path)
 
 
+def test_a_misspelt_scenario_name_is_one_line_with_the_nearest_names():
+    with pytest.raises(SpecError) as ei:
+        load_scenario("circle_vinly")
+    msg = str(ei.value)
+    assert "field 'scenario' = 'circle_vinly'" in msg and "did you mean circle_vinyl?" in msg and "\n" not in msg
+
+
 def test_a_misspelt_parameter_is_named_not_its_source(tmp_path):
     """stall_torqe = 1.95 above a [sources] entry for stall_torque: the error names the misspelt parameter and the
     name it should have, not the source entry that no longer finds it."""

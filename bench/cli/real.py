@@ -100,7 +100,7 @@ def _real(a: argparse.Namespace) -> int:
 def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: Path) -> dict[str, dict]:
     from bench.real.benchmark import run_real_benchmark
 
-    docs = {}
+    docs, written = {}, []
     for data in a.data:
         label = f"{data.stem}-{plat['name']}"
         res = run_real_benchmark(data, stage, a.seed, platform=plat, models=methods, figures=not a.no_figures,
@@ -111,9 +111,12 @@ def _score_tables(a: argparse.Namespace, plat: dict, methods: list[str], stage: 
         v = res["verdict"]
         best = (f"best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "
                 f"{v['ideal_dd_median_trans']:.3f} m" if v["best_icr_model"] else "no ICR-family model scored")
-        print(f"{data}: {len(res['models'])} models on {res['n_test_windows']} held-out windows; {best} -> "
-              f"{a.out / (label + '.md')}")
+        print(f"{data}: {len(res['models'])} models on {res['n_test_windows']} held-out windows; {best}")
+        written.append(a.out / (label + ".md"))
         docs[str(data)] = {k: res[k] for k in res if k not in ("files", "runtime_s") and not k.startswith("_")}
+    # the reports appear in --out together once every table is scored (staged_folder): named only then
+    for path in written:
+        print(f"-> {path}")
     return docs
 
 

@@ -330,6 +330,8 @@ def compare_metrics(base: Mapping[str, Any], new: Mapping[str, Any]) -> list[dic
 def _cmp_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("base", type=Path)
     p.add_argument("new", type=Path)
+    p.add_argument("--papers", default=None, metavar="P1,P2",
+                   help="compare only these papers' metrics (e.g. a one-paper reproduce against the full baseline)")
 
 
 def _read_metrics(path: Path) -> dict[str, Any]:
@@ -361,9 +363,23 @@ def _read_metrics(path: Path) -> dict[str, Any]:
     return doc
 
 
+def _only(doc: Mapping[str, Any], papers: set[str]) -> dict[str, Any]:
+    """``doc`` with the metrics of ``papers`` only (a metric id begins with its paper: ``<paper>.<table>.<key>``)."""
+    return {**doc, "metrics": {k: v for k, v in doc["metrics"].items() if k.split(".", 1)[0] in papers}}
+
+
 def _compare(a: argparse.Namespace) -> int:
+    from bench.spec import SpecError
+
     base = _read_metrics(a.base)
     new = _read_metrics(a.new)
+    if a.papers is not None:
+        papers = {p.strip() for p in a.papers.split(",") if p.strip()}
+        known = {k.split(".", 1)[0] for k in base["metrics"]}
+        if not papers or not papers <= known:
+            raise SpecError("<command line>", "--papers", a.papers,
+                            f"paper ids of the baseline: {', '.join(sorted(known))}")
+        base, new = _only(base, papers), _only(new, papers)
     moved = compare_metrics(base, new)
     if not moved:
         print(f"no metric moved beyond its tolerance ({len(base.get('metrics', {}))} compared)")
