@@ -15,7 +15,6 @@ Every parameter of a platform or terrain file names its source in the file's ``[
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import math
 import tomllib
 import types
@@ -27,6 +26,7 @@ from bench.paths import SCENARIO_DIR  # the checkout's scenarios/, installed: th
 from bench.schema import SpecError, build, nonneg, positive, read_toml
 from bench.sensor_spec import SENSOR_RATE_RANGE, EncoderSpec, GnssSpec, ImuSpec, ReferenceSpec, SensorSpec, sensor_rate
 from bench.sources import Source, Sources, default_sources, file_sources, override_sources, parameters
+from bench.spec_files import known_file, list_scenarios, registered, resolve_name
 
 
 # --------------------------------------------------------------------------------------------
@@ -461,49 +461,21 @@ def _mark_overrides(part: dict[str, Any], keys: list[str], ref: str,
             given or {})
 
 
-def registered(what: str, root: Path = SCENARIO_DIR) -> list[str]:
-    """The names of the ``what`` ("platform" or "terrain") files of the scenario folder."""
-    return list_scenarios(root / f"{what}s")
-
-
-def _known(name_or_path: str | Path, root: Path, what: str) -> Path:
-    """The file of a registered name or a path; an unknown bare name is a one-line error listing the known ones."""
-    path = _resolve(name_or_path, root / f"{what}s")
-    p = Path(name_or_path)
-    if not path.exists() and p.suffix != ".toml" and len(p.parts) == 1:
-        raise SpecError(f"<{what} name>", what, str(name_or_path),
-                        f"unknown {what}; known: {', '.join(registered(what, root))} (or the path of a .toml file)")
-    return path
-
-
 def load_platform(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Platform:
-    path = _known(name_or_path, root, "platform")
+    path = known_file(name_or_path, root, "platform")
     return build(Platform, _read_part(path, Platform), path)
 
 
 def load_terrain(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> Terrain:
-    path = _known(name_or_path, root, "terrain")
+    path = known_file(name_or_path, root, "terrain")
     data = _read_part(path, Terrain)
     data.pop("dt_max", None)  # a requirement on the scenario's step (load_scenario), not a terrain field
     return build(Terrain, data, path)
 
 
-def _resolve(name_or_path: str | Path, folder: Path) -> Path:
-    p = Path(name_or_path)
-    if p.suffix == ".toml" or p.is_absolute() or p.exists():
-        return p
-    return folder / f"{name_or_path}.toml"
-
-
 def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[Path, dict[str, Any]]:
     """The raw merged dict of a scenario: its platform and terrain files inlined as tables."""
-    path = _resolve(name_or_path, root)
-    p = Path(name_or_path)
-    if not path.exists() and p.suffix != ".toml" and len(p.parts) == 1:  # a bare name that is no scenario
-        near = difflib.get_close_matches(str(name_or_path), list_scenarios(root), n=3)
-        hint = f"did you mean {' or '.join(near)}? " if near else ""
-        raise SpecError("<scenario name>", "scenario", str(name_or_path),
-                        f"unknown scenario; {hint}(`skidbench list` shows them all, or give the path of a .toml file)")
+    path = known_file(name_or_path, root, "scenario")
     raw = read_toml(path)
     data = dict(raw)
     for key, folder, cls in (("platform", "platforms", Platform), ("terrain", "terrains", Terrain)):
@@ -511,7 +483,7 @@ def scenario_data(name_or_path: str | Path, root: Path = SCENARIO_DIR) -> tuple[
         if ref is None:
             raise SpecError(path, key, None, "required field is missing")
         if isinstance(ref, str):
-            ppath = _resolve(ref, root / folder)
+            ppath = resolve_name(ref, root / folder)
             if not ppath.is_file():
                 raise SpecError(path, key, ref, f"unknown {key}: no file {ppath}")
             data[key] = _read_part(ppath, cls)
@@ -591,10 +563,6 @@ def _without_sources(d: Any) -> Any:
     if isinstance(d, dict):
         return {k: _without_sources(v) for k, v in d.items() if not isinstance(v, Sources)}
     return d
-
-
-def list_scenarios(root: Path = SCENARIO_DIR) -> list[str]:
-    return sorted(p.stem for p in root.glob("*.toml"))
 
 
 __all__ = [

@@ -92,7 +92,8 @@ def test_testbed_values_with_an_alternative_are_a_choice_of_their_own(tmp_path):
     assert [c.claims for c in got] == [(), ("p.a",)]
     testbed, = [c for c in got if not c.claims]
     assert {(e.file, e.key, e.value, e.alternative) for e in testbed.edits} == {
-        ("terrains/ground.toml", "mu_lat_ratio", 1.06, 1.0), ("terrains/ground.toml", "shear_modulus_lat_ratio", 1.4, 1.0)}
+        ("terrains/ground.toml", "mu_lat_ratio", 1.06, 1.0),
+        ("terrains/ground.toml", "shear_modulus_lat_ratio", 1.4, 1.0)}
 
 
 @pytest.mark.parametrize("entry, field", [

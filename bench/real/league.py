@@ -1,5 +1,5 @@
-"""The real league (``results/real/league.md``): every window model on every real data set, held-out errors with bootstrap
-intervals over command steps, and a plain statement of where an ICR model does not beat ideal differential drive.
+"""The real league (``results/real/league.md``): every window model on every real data set, held-out errors with
+bootstrap intervals over command steps, and a plain statement of where an ICR model does not beat ideal differential drive.
 
 Data sets: each folder of the data root (``../shared/data``, or ``SKIDBENCH_DATA``) holding a DRIVE table, with its
 platform from :data:`KNOWN` (the Husky's folder) or from a ``platform.toml`` beside the table
