@@ -295,7 +295,8 @@ def file_sources(data: Mapping[str, Any], file: Path | str) -> dict[str, Source]
             unsourced = [k for k in params if k not in entries]
             near = difflib.get_close_matches(key, unsourced, n=1, cutoff=0.6)
             if near:
-                raise SpecError(file, near[0], params[near[0]], f"not a known parameter name: did you mean {key}?")
+                raise SpecError(file, near[0], params[near[0]], f"its [sources] entry is named {key}: one of the two "
+                                "names is misspelt")
             raise SpecError(file, f"sources.{key}", entry.get("kind") if isinstance(entry, Mapping) else entry,
                             "a source for a parameter the file does not set")
     out = {}

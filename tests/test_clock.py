@@ -121,3 +121,45 @@ def test_the_check_flags_an_offset_of_two_samples_and_the_fix_removes_it() -> No
     half = np.arange(w.n_windows) < w.n_windows // 2
     fixed, lines = apply_fixes(w, ["align_gyro"], measure_on=half)
     assert f"{-3.0 - HOLD:+.1f} samples" in lines[0]
+
+
+def test_the_fix_is_measured_on_the_windows_it_is_told():
+    """The same motion (same seed) with the gyro 3 samples early in the first half and 1 in the second: measured on
+    the first half (the benchmark's calibration half) the shift is the first half's, on the second the second's."""
+    early, _ = _log(-3.0, 0.0)
+    late, _ = _log(-1.0, 0.0)
+    half = np.arange(early.n_windows) < early.n_windows // 2
+    gz = np.where(half[:, None], early["imu_gz"], late["imu_gz"])
+    w = dataclasses.replace(early, channels={**early.channels, "imu_gz": gz})
+    assert apply_fixes(w, ["align_gyro"], measure_on=half)[1] == [f"align_gyro: imu_gz read {-3.0 - HOLD:+.1f} samples "
+                                                                  f"({1000 * (-3.0 - HOLD) * w.dt:+.0f} ms) from its stamp"]
+    assert f"{-1.0 - HOLD:+.1f} samples" in apply_fixes(w, ["align_gyro"], measure_on=~half)[1][0]
+
+
+def test_a_gyro_without_signal_has_no_offset_and_the_fix_says_so():
+    """A gyro reading zeros: no offset is measured (the check does not print nan), and --fix align_gyro shifts
+    nothing and says why instead of failing."""
+    w, _ = _log(-3.0, 0.0)
+    flat = dataclasses.replace(w, channels={**w.channels, "imu_gz": np.zeros_like(w["imu_gz"])})
+    assert "imu_gz" not in offsets(flat)
+    f = next(f for f in check_windows(flat) if f.check == "clock_offset")
+    assert f.ok and "nan" not in f.evidence and "imu_gz" not in f.values
+    fixed, lines = apply_fixes(flat, ["align_gyro"])
+    assert lines == ["align_gyro: no offset measured (imu_gz does not follow the reference's yaw rate)"]
+    np.testing.assert_array_equal(fixed["imu_gz"], flat["imu_gz"])
+    with pytest.raises(ValueError, match="finite"):
+        shift_stream(w, "imu_gz", float("nan"))
+
+
+def test_windows_cut_from_a_run_borrow_samples_only_across_a_real_boundary():
+    """A continuous run cut into windows drops samples between some of them (the samples at rest before the first
+    command step form a window with 5 samples left over): those windows' rows are not consecutive, so the gyro's
+    shift holds the window's end sample there instead of reading the next window's, which is later in time."""
+    from bench.real.run_windows import windows_from_run
+    from tests.test_real_cli import _log as drive_log, _run_of
+
+    w = windows_from_run(_run_of(drive_log(n_steps=6)))
+    assert w.row[1] - w.row[0] == 2 and np.all(np.diff(w.row[1:]) == 1)
+    out = shift_stream(w, "imu_gz", 3.0)["imu_gz"]
+    np.testing.assert_allclose(out[0, -3:], w["imu_gz"][0, -1], atol=1e-12)  # no neighbour after the gap: held
+    np.testing.assert_allclose(out[1, -3:], w["imu_gz"][2, :3], atol=1e-12)  # the next window follows: borrowed

@@ -103,3 +103,16 @@ def test_a_report_is_named_only_once_every_table_is_scored(clean, tmp_path, caps
     assert main(["real", str(clean[0]), "--platform", "husky", "--out", str(out), "--no-figures"]) == 0
     arrows = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("-> ")]
     assert len(arrows) == 1 and (out / arrows[0][3:].split("/")[-1]).is_file()
+
+
+def test_a_gyro_that_is_nan_throughout_is_absent_not_a_reason_to_drop_every_window(clean, tmp_path):
+    """An optional channel with no finite sample at all counts as missing: every window is still scored (a NaN in
+    some samples of a channel that is there drops those windows: test_a_nan_in_any_input_...)."""
+    from bench.real.benchmark import run_real_benchmark
+
+    df = clean[1].copy()
+    df[[c for c in df.columns if c.startswith("imu_yaw_")]] = np.nan
+    p = tmp_path / "nogyro.parquet"
+    df.to_parquet(p)
+    res = run_real_benchmark(p, tmp_path / "out", figures=False, models=["baseline.ideal_dd", "wang2015.constant_chi"])
+    assert res["n_excluded"] == 0 and res["verdict"]["best_icr_model"] == "icr_sym_chi"

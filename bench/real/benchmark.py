@@ -227,7 +227,7 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
     if name == "unspecified":
         name = data_path.stem
     allw, w, findings = scored_windows(data_path, r)
-    n_excluded = allw.n_windows - w.n_windows  # windows without finite wheel speeds or reference ends
+    n_excluded = allw.n_windows - w.n_windows  # a non-finite input sample or reference end (valid_windows)
     fixed_w, fixed = apply_fixes(w, fixes)
     calib_steps, test_steps = split_steps(fixed_w, seed)
     if {"imu_offset", "align_gyro"} & set(fixes):  # measured again on the calibration half only (same windows)
@@ -278,12 +278,15 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
         "best_icr_median_trans": family.get(best, math.nan) if best else math.nan,
         **_verdicts(results, best, draws),
     }
-    # the same verdicts with the other reading of the wheel speeds' time stamps (module docstring); the same
-    # best ICR-family model, the same resamples of the held-out steps
+    # the same verdicts with the other reading of the wheel speeds' time stamps (module docstring): the best
+    # ICR-family model chosen again under it, the same resamples of the held-out steps
     later_fitted, _ = _fit_all(unfitted, later_wheel_speeds(calib), models)
     later = {m.name: evaluate(m, later_wheel_speeds(test)) for m in later_fitted}
+    later_family = {k: later[k]["stats"]["all"]["trans"]["median"] for k in ICR_FAMILY if k in later}
+    best_later = min(later_family, key=later_family.get) if later_family else None
     verdict["later_wheel_speeds"] = {
-        **_verdicts(later, best, draws),
+        "best_icr_model": best_later,
+        **_verdicts(later, best_later, draws),
         "medians_trans": {k: v["stats"]["all"]["trans"]["median"] for k, v in later.items()},
     }
     out = {

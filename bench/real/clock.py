@@ -77,11 +77,13 @@ def offsets(w: DriveWindows) -> dict[str, float]:
         wl, wr = np.asarray(w["enc_wl"], float), np.asarray(w["enc_wr"], float)
         out["wheels_forward"] = stream_offset(forward, (wl + wr) / 2.0)[0]
         out["wheels_turn"] = stream_offset(yaw_rate, wr - wl)[0]
-    return out
+    return {k: v for k, v in out.items() if np.isfinite(v)}  # a stream without the reference's motion: no offset
 
 
 def shift_stream(w: DriveWindows, channel: str, s: float) -> DriveWindows:
     """``w`` with ``channel``'s sample k replaced by its reading at k + s (module docstring)."""
+    if not np.isfinite(s):
+        raise ValueError(f"shift_stream: the shift of {channel} must be finite, not {s}")
     a = np.asarray(w[channel], float)
     n, m = a.shape
     pad = int(np.ceil(abs(s))) + 1

@@ -145,7 +145,7 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
     add("## Data and split\n")
     add(f"- Table: `{out['data_file']}` (sha256 `{out['data_sha256'][:16]}...`), {out['n_windows']} windows of "
         f"2 s at 20 Hz, {len(out['calib_steps']) + len(out['test_steps'])} command steps; "
-        f"{out['n_excluded']} windows excluded (non-finite wheel speeds or ICP start/end pose).")
+        f"{out['n_excluded']} windows excluded (a non-finite input sample: wheel speeds, commands, gyro; or ICP start/end pose).")
     add(f"- Platform `{out['platform']}`: wheel radius r = {out['wheel_radius']} m, track B = {out['track']} m.")
     add(f"- Split by command step, seed {out['seed']}: `numpy.random.default_rng(seed).permutation(steps)`, first "
         f"half calibrates. Calibration: {len(out['calib_steps'])} steps, {out['n_calib_windows']} windows. "
@@ -203,7 +203,9 @@ def _report(out: Mapping[str, Any], figures: bool, name: str) -> str:
     if later and best is not None:
         llo, lhi = later["best_minus_ideal_interval"]
         same = bool(later["passed"]) == bool(v["passed"])
-        add(f"{TIME_CONVENTION} the interval is {llo:+.3f} to {lhi:+.3f} m: the verdict "
+        other = later.get("best_icr_model") or best
+        which = "" if other == best else f" (its best ICR-family model is `{other}`)"
+        add(f"{TIME_CONVENTION} the interval is {llo:+.3f} to {lhi:+.3f} m{which}: the verdict "
             + ("is the same.\n" if same else "**changes** (decided by the time convention).\n"))
     yi = _yi_sentences(out)
     if yi:

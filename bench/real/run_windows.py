@@ -12,7 +12,9 @@
    log with continuously varying commands), the log is cut into consecutive 3-window blocks taken as steps, every
    window transitory (none is steady: the chi of Wang eq. (25) is then not measured).  Without command channels the
    log is cut into such blocks too.
-3. **Frames.**  Each window's reference pose (``ref_x``, ``ref_y``, ``ref_yaw``) is expressed in a frame at its first
+3. **Rows.**  ``row`` numbers the windows in log order, skipping a number where samples lie between two windows
+   (what :class:`~bench.real.drive.DriveWindows` calls adjacent rows follow each other without a gap).
+4. **Frames.**  Each window's reference pose (``ref_x``, ``ref_y``, ``ref_yaw``) is expressed in a frame at its first
    sample: origin at its position, axes along its heading (so the window starts at (0, 0, 0); ``frame_yaw`` = 0);
    the heading is unwrapped along the window.
 
@@ -121,4 +123,12 @@ def windows_from_run(run: Run, where: str | None = None, dt: float = DRIVE_DT, w
     step_a = np.array(step_id, float)
     return DriveWindows(source=str(where), dt=dt, channels=ch, calib_step=step_a, calib_step_label=step_a.copy(),
                         window=np.array(index), steady=steady_a, transitory=~steady_a,
-                        overlap=np.zeros(n, int), frame_yaw=np.zeros(n), row=np.arange(n))
+                        overlap=np.zeros(n, int), frame_yaw=np.zeros(n), row=_rows(idx))
+
+
+def _rows(idx: np.ndarray) -> np.ndarray:
+    """The windows' ``row`` numbers: consecutive for windows that follow each other on the grid without a gap, one
+    more apart where samples were dropped between them (a step's remainder, a step shorter than a window), so that
+    :func:`bench.real.clock.shift_stream` borrows samples from a neighbour only across a real boundary."""
+    gap = np.r_[False, idx[1:, 0] != idx[:-1, -1] + 1]
+    return np.arange(idx.shape[0]) + np.cumsum(gap)

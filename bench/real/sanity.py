@@ -399,9 +399,12 @@ def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
     if "align_gyro" in fixes and w.has("imu_gz"):  # measured after the flip and the offset, like them
         from bench.real.clock import offsets, shift_stream
 
-        s = offsets(out if measure_on is None else out.subset(np.asarray(measure_on, bool))).get("imu_gz", 0.0)
-        out = shift_stream(out, "imu_gz", s)
-        done.append(f"align_gyro: imu_gz read {s:+.1f} samples ({1000 * s * w.dt:+.0f} ms) from its stamp")
+        s = offsets(out if measure_on is None else out.subset(np.asarray(measure_on, bool))).get("imu_gz")
+        if s is None:  # no gyro signal to time against the reference: nothing to shift
+            done.append("align_gyro: no offset measured (imu_gz does not follow the reference's yaw rate)")
+        else:
+            out = shift_stream(out, "imu_gz", s)
+            done.append(f"align_gyro: imu_gz read {s:+.1f} samples ({1000 * s * w.dt:+.0f} ms) from its stamp")
     if "drop_stale" in fixes and w.has("ref_x"):
         stale = _stale(out)
         out = out.subset(~stale)

@@ -110,7 +110,7 @@ def valid_windows(w: DriveWindows) -> np.ndarray:
     sample drops the window for every model alike (the comparisons stay paired), never one model's row."""
     ok = np.ones(w.n_windows, bool)
     for c in INPUTS:
-        if w.has(c):
+        if w.has(c) and np.isfinite(w[c]).any():  # a channel NaN throughout is absent (its models are skipped)
             ok &= np.isfinite(w[c]).all(axis=1)
     for c in ("ref_x", "ref_y", "ref_yaw"):
         ok &= np.isfinite(w[c][:, 0]) & np.isfinite(w[c][:, -1])
