@@ -35,7 +35,8 @@ def known_file(name_or_path: str | Path, root: Path, what: str) -> Path:
     if not (path := resolve_name(name_or_path, folder)).exists() and p.suffix != ".toml" and len(p.parts) == 1:
         names = list_scenarios(folder)
         near = " or ".join(difflib.get_close_matches(p.name, names, n=3))
-        known = (f"did you mean {near}? (`skidbench list` shows them all, or give the path of a .toml file)"
+        hint = f"did you mean {near}? " if near else ""
+        known = (f"{hint}(`skidbench list` shows them all, or give the path of a .toml file)"
                  if what == "scenario" else f"known: {', '.join(names)} (or the path of a .toml file)")
         raise SpecError(f"<{what} name>", what, str(name_or_path), f"unknown {what}; {known}")
     return path

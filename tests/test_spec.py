@@ -284,6 +284,9 @@ def test_a_misspelt_scenario_name_is_one_line_with_the_nearest_names():
         load_scenario("circle_vinly")
     msg = str(ei.value)
     assert "field 'scenario' = 'circle_vinly'" in msg and "did you mean circle_vinyl?" in msg and "\n" not in msg
+    with pytest.raises(SpecError) as ei:  # nothing near: no empty "did you mean ?"
+        load_scenario("zzzzqq")
+    assert "did you mean" not in str(ei.value) and "`skidbench list` shows them all" in str(ei.value)
 
 
 def test_a_misspelt_parameter_is_named_not_its_source(tmp_path):

@@ -30,25 +30,21 @@ def data_root() -> Path:
 
 def _extra_real(results_dir: Path, quick: bool, workers: int = 1) -> None:  # serial: < 1 min
     from bench.real.benchmark import every_window_plugin, run_real_benchmark
-    from bench.real.league import write_real_league
+    from bench.real.league import data_sets, write_real_league
+    from bench.reproduce.publish import final_dir
 
-    table = data_root() / "drive_husky" / "husky_windows.parquet"
+    root = data_root()
+    table = root / "drive_husky" / "husky_windows.parquet"
     if not table.is_file():
-        from bench.real.league import data_sets
-
-        if not data_sets(data_root()):
-            print(f"real: skipped, no data at {data_root()} (set SKIDBENCH_DATA to the folder holding drive_husky/ "
+        if not data_sets(root):
+            print(f"real: skipped, no data at {root} (set SKIDBENCH_DATA to the folder holding drive_husky/ "
                   "or folders with a DRIVE table and a platform.toml)")
             return
-        from bench.reproduce.publish import final_dir
-
-        league = write_real_league(data_root(), results_dir / "real")  # the other robots' data sets; no Husky gap
+        league = write_real_league(root, results_dir / "real")  # the other robots' data sets; no Husky gap
         print(f"real: {final_dir(results_dir) / 'real' / Path(league).name} (no Husky table at {table})")
         return
     res = run_real_benchmark(table, results_dir / "real", models=every_window_plugin())
-    from bench.reproduce.publish import final_dir
-
-    league = write_real_league(data_root(), results_dir / "real", done={table: res})
+    league = write_real_league(root, results_dir / "real", done={table: res})
     print(f"real: {final_dir(results_dir) / 'real' / Path(league).name}")  # where it is published, not staged
     v = res["verdict"]
     print(f"real: best ICR model {v['best_icr_model']} median {v['best_icr_median_trans']:.3f} m vs ideal DD "

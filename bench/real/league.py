@@ -20,6 +20,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from bench.real.windows import ICR_FAMILY
+
 __all__ = ["KNOWN", "data_sets", "step_draws", "bootstrap_median", "paired_median_difference", "comparison",
            "league_markdown", "write_real_league"]
 
@@ -80,8 +82,6 @@ def _cell(m: float, lo: float, hi: float, digits: int = 3) -> str:
 
 
 def _rows(res: Mapping[str, Any]) -> tuple[list[str], list[str]]:
-    from bench.real.benchmark import ICR_FAMILY
-
     win = res["_windows"]
     steps, steady = np.asarray(win["step"]), np.asarray(win["steady"], bool)
     draws = step_draws(steps)

@@ -229,10 +229,7 @@ def _reproduce_parallel(papers: list[str], runner: Runner, results_dir: Path, qu
             for k in ("simulated", "cached", "sim_seconds", "result_cache_hits"):
                 runner.stats[k] += stats[k]
             runner.stats["stages"].update(stats["stages"])
-            runner.manifest["scenarios"].update(manifest["scenarios"])
-            runner.manifest["runs"].update(manifest["runs"])
-            if "cpu_dispatch" in manifest:
-                runner.manifest["cpu_dispatch"] = manifest["cpu_dispatch"]
+            runner.add_manifest(manifest)
     # the manifest's key order follows the papers' order, not the completion order
     runner.manifest["runs"] = dict(sorted(runner.manifest["runs"].items()))
     runner.manifest["scenarios"] = dict(sorted(runner.manifest["scenarios"].items()))

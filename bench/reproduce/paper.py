@@ -216,7 +216,6 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
     ctx = Context(paper=paper, runner=runner, out_dir=out_dir, quick=quick, extended=extended)
     before = _file_stamps(out_dir)
     module = importlib.import_module(decl["module"])
-    runner.served.clear()
     runner.served_keys.clear()
     metrics: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -247,11 +246,12 @@ def reproduce_paper(name: str, runner: Runner, results_dir: Path = RESULTS, quic
         step(len(ran), len(ran), "claims")
     claims = [claim_result(paper, c, metrics, ctx.notes, quick) for c in decl.get("claims", [])
               if not claim_tables(c) & set(skipped)]
-    served = sorted(set(runner.served))
+    manifest = runner.manifest_of(runner.served_keys)
+    served = sorted({(r["scenario"], r["seed"]) for r in manifest["runs"].values()})
     ctx.info.setdefault("seeds", sorted({seed for _, seed in served}))
     ctx.info["runs"] = [f"{sid} seed {seed}" for sid, seed in served]
     res = PaperResult(paper, decl, metrics, tables, claims, ctx.figures, ctx.notes, time.perf_counter() - t0, ctx.info,
-                      manifest=runner.manifest_of(runner.served_keys))
+                      manifest=manifest)
     write_paper(res, out_dir)
     # every file this computation wrote (tables, notes, figures, the compute functions' own files): a cache hit
     # writes them back, also into another results folder

@@ -100,7 +100,6 @@ class Runner:
     stats: dict = field(default_factory=lambda: {"simulated": 0, "cached": 0, "sim_seconds": 0.0,
                                                  "result_cache_hits": 0, "stages": {}})
     manifest: dict = field(default_factory=lambda: {"scenarios": {}, "runs": {}})  # + cpu_dispatch when served
-    served: list = field(default_factory=list)  # (scenario id, seed) of every run handed out
     served_keys: list = field(default_factory=list)  # the run-cache key of every run handed out (the manifest's)
 
     def path_for(self, scn: Scenario, seed: int) -> Path:
@@ -143,7 +142,6 @@ class Runner:
         sh = scenario_hash(scn)
         self.manifest["cpu_dispatch"] = dispatch_state()
         self.manifest["scenarios"].setdefault(sh, dict(to_dict(scn), source_file=portable_source(scn.source_file)))
-        self.served.append((scn.id, int(seed)))
         self.served_keys.append(key)
         self.manifest["runs"][key] = {"scenario": scn.id, "scenario_hash": sh, "seed": int(seed),
                                       "content_hash": run.content_hash()}
@@ -159,7 +157,7 @@ class Runner:
         return out
 
     def add_manifest(self, part: Mapping) -> None:
-        """Merge a paper's :meth:`manifest_of` (from a cached result) into :attr:`manifest`."""
+        """Merge a manifest (a paper job's, or a cached result's :meth:`manifest_of`) into :attr:`manifest`."""
         self.manifest["scenarios"].update(part.get("scenarios", {}))
         self.manifest["runs"].update(part.get("runs", {}))
         if "cpu_dispatch" in part:
