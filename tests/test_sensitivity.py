@@ -18,7 +18,7 @@ from bench import reproduce as R
 from bench.reproduce.sensitivity import Choice, Edit, choices, flips, papers_using, run_sensitivity, set_value
 from bench.schema import SpecError
 from bench.sources import file_sources
-from bench.spec import SCENARIO_DIR, load_platform, load_terrain
+from bench.spec import SCENARIO_DIR, Scenario, load_platform, load_scenario, load_terrain
 from tests.test_claims import reproduce_fake
 
 TOML = textwrap.dedent('''
@@ -118,7 +118,8 @@ def test_a_switch_takes_a_switch_as_its_alternative():
 
 
 def test_every_shipped_alternative_loads_as_a_valid_spec(tmp_path):
-    """Each declared alternative, written into a copy of its file, loads (a valid platform / terrain) with the value."""
+    """Each declared alternative, written into a copy of its file, loads (a valid platform / terrain) with the value;
+    a terrain's ``dt_max`` (a requirement on the step, not a terrain field) is the step of a scenario on it."""
     got = choices()
     assert got, "the shipped files declare alternatives"
     for c in got:
@@ -127,6 +128,15 @@ def test_every_shipped_alternative_loads_as_a_valid_spec(tmp_path):
             copy.parent.mkdir(parents=True, exist_ok=True)
             copy.write_text(set_value((SCENARIO_DIR / e.file).read_text(), e.key, e.alternative))
             spec = (load_platform if e.file.startswith("platforms/") else load_terrain)(copy)
+            if e.key == "dt_max":
+                scn = tmp_path / "on_it.toml"
+                scn.write_text(f'platform = "p3at_pneumatic_20psi"\nterrain = "{copy.stem}"\nduration = 1.0\n'
+                               '[command]\nkind = "v_radius"\nsegments = [[1.0, 0.2, inf]]\n')
+                (tmp_path / "platforms").mkdir(exist_ok=True)
+                (tmp_path / "platforms" / "p3at_pneumatic_20psi.toml").write_text(
+                    (SCENARIO_DIR / "platforms" / "p3at_pneumatic_20psi.toml").read_text())
+                assert load_scenario(scn, root=tmp_path).dt == min(Scenario.dt, e.alternative), e.name
+                continue
             obj = spec
             for part in e.key.split("."):
                 obj = getattr(obj, part)
