@@ -44,7 +44,9 @@ def test_a_quick_run_shows_cause_quick_and_a_full_run_cause():
     assert "cause_quick" not in full and "cause_quick" not in quick
     assert full["refuted"] is False and full["favours"] is True
     only_full = {k: v for k, v in CLAIM.items() if k != "cause_quick"}
-    assert claim_result("p", only_full, m, {}, quick=True)["cause"] == CLAIM["cause"]  # no quick cause: the cause
+    # no quick cause: the cause, marked as the full run's
+    assert claim_result("p", only_full, m, {}, quick=True)["cause"] == {"kind": "testbed", "text": "full",
+                                                                         "of": "the full run's cause and numbers"}
     only_quick = {k: v for k, v in CLAIM.items() if k != "cause"}
     assert "cause" not in claim_result("p", only_quick, m, {})  # a full run never shows a quick run's reason
 

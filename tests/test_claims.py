@@ -513,6 +513,35 @@ def test_committed_failing_claims_carry_a_cause(name: str) -> None:
            if not v["cause"] or v["cause"].get("kind") not in ("method", "testbed", "protocol", "paper")
            or not v["cause"].get("text", "").strip()}
     assert bad == {}
+    # a cause quoting a metric the run did not compute would show "[no metric ...]"
+    assert {k for k, v in failing.items() if "[no metric" in v["cause"]["text"]} == set()
+
+
+def test_a_cause_quotes_this_runs_numbers_and_a_quick_run_says_whose_reason_it_shows():
+    """{metric} / {metric:fmt} in a cause text is the run's value (format as Python's; default .4g); a metric the run
+    lacks is marked, not guessed; a quick run without cause_quick shows the full run's reason, marked."""
+    claim = {"id": "c", "kind": "ordering", "metrics": ["a", "b"],
+             "cause": {"kind": "method", "text": "a = {a:.2f} against b = {b}; net {n:.1%}; {gone}"}}
+    metrics = {"a": 2.0, "b": 1.0 / 3.0, "n": -0.0027}
+    got = claim_result("p", claim, metrics, {})
+    assert got["holds"] is False
+    assert got["cause"]["text"] == "a = 2.00 against b = 0.3333; net -0.3%; [no metric gone]"
+    quick = claim_result("p", claim, metrics, {}, quick=True)["cause"]
+    assert quick == {**got["cause"], "of": "the full run's cause, this run's numbers"}
+    plain = {**claim, "cause": {"kind": "method", "text": "0.5 vs 0.4"}}
+    assert claim_result("p", plain, metrics, {}, quick=True)["cause"]["of"] == "the full run's cause and numbers"
+    own = {**claim, "cause_quick": {"kind": "method", "text": "quick: {a:.1f}"}}
+    assert claim_result("p", own, metrics, {}, quick=True)["cause"] == {"kind": "method", "text": "quick: 2.0"}
+
+
+@pytest.mark.parametrize("text, field", [("x {a:.2q}", "format"), ("x {a} and a stray } brace", "braces"),
+                                         ("{a:.3f} " * 60, "as shown")])
+def test_a_bad_quoted_metric_is_a_one_line_error(text: str, field: str) -> None:
+    claim = {"id": "c", "text": "t", "source": "s", "kind": "ordering", "metrics": ["a", "b"],
+             "cause": {"kind": "method", "text": text}}
+    with pytest.raises(SpecError, match=re.escape(field)) as e:
+        check_claim(Path("p.toml"), 0, claim, set())
+    assert "\n" not in str(e.value) and "claims.c.cause.text" in str(e.value)
 
 
 def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report():

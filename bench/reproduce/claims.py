@@ -19,7 +19,13 @@ A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
     fails_if = "..."               # optional; by default written by :func:`fails_if`
     cause = {kind = "method" | "testbed" | "protocol" | "paper", text = "<= 300 characters"}
     cause_quick = {kind = ..., text = ...}  # optional: the cause shown by a ``--quick`` run (fewer seeds, shorter
-                                   # runs: its numbers and its reason may differ); without it the quick run shows cause
+                                   # runs: its numbers and its reason may differ); without it the quick run shows cause,
+                                   # marked as the full run's (its "of")
+
+A cause text quotes this run's numbers as ``{metric}`` or ``{metric:.3f}`` (a metric id the paper computes, a
+Python format; default ``.4g``): :func:`fill_numbers` writes the value in, so a quoted number cannot go stale when
+the code changes, and a quick run shows its own.  A metric the run did not compute is written ``[no metric id]``
+(tests/test_claims.py keeps it out of the committed results).
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
@@ -35,13 +41,15 @@ produce the outcome: :mod:`bench.reproduce.sources`), "not evaluated" (a metric 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from typing import Any, Mapping
 
 from bench.spec import SpecError
 
 __all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "claim_tables", "row_verdict",
-           "row_ratio", "evaluate_claim", "refuted", "favours", "fails_if", "verdict", "check_claim", "needs_tolerance_origin"]
+           "row_ratio", "evaluate_claim", "refuted", "favours", "fails_if", "verdict", "check_claim", "needs_tolerance_origin",
+           "fill_numbers", "quoted_metrics"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
 CAUSE_KINDS = ("method", "testbed", "protocol", "paper")
@@ -58,6 +66,24 @@ _KIND_FIELDS = {
 }
 _COMMON_FIELDS = ("id", "text", "source", "quote", "headline", "scope", "kind", "tolerance_origin", "fails_if",
                   "cause", "cause_quick", "explain_if_fails")
+
+
+_QUOTED = re.compile(r"\{([A-Za-z0-9_.]+)(?::([^{}]*))?\}")
+
+
+def quoted_metrics(text: str) -> list[tuple[str, str]]:
+    """The ``(metric id, format)`` of each ``{metric}`` / ``{metric:format}`` a cause text quotes (module doc)."""
+    return [(m.group(1), m.group(2) or ".4g") for m in _QUOTED.finditer(text)]
+
+
+def fill_numbers(text: str, metrics: Mapping[str, float]) -> str:
+    """``text`` with each quoted metric replaced by its value in ``metrics`` (module doc)."""
+    def one(m: re.Match[str]) -> str:
+        v = metrics.get(m.group(1))
+        if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+            return f"[no metric {m.group(1)}]"
+        return format(v, m.group(2) or ".4g")
+    return _QUOTED.sub(one, text)
 
 
 def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
@@ -339,8 +365,18 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
         text = cause.get("text")
         if not isinstance(text, str) or not text.strip():
             raise err(f"{key}.text", text, "a non-empty string")
-        if len(text) > TEXT_LIMIT:
-            raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters")
+        for metric, spec in quoted_metrics(text):
+            try:
+                format(1.0, spec)
+            except ValueError:
+                raise err(f"{key}.text", f"{{{metric}:{spec}}}", "a quoted metric's format is a Python float "
+                          "format (e.g. .3f, .2g)") from None
+        # its length as shown: a quoted number as long as -1.2345678 in its format
+        shown = len(_QUOTED.sub(lambda m: format(-1.2345678, m.group(2) or ".4g"), text))
+        if shown > TEXT_LIMIT:
+            raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")
+        if "{" in _QUOTED.sub("", text) or "}" in _QUOTED.sub("", text):
+            raise err(f"{key}.text", _short(text), "braces only around a quoted metric: {metric} or {metric:.3f}")
     try:
         ids = claim_metric_ids(c)
     except KeyError as exc:

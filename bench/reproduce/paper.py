@@ -16,7 +16,8 @@ from typing import Any, Callable
 
 from bench.report.io import atomic_path
 from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, favours,
-                                    refuted, row_verdict, verdict)
+                                    fill_numbers, quoted_metrics, refuted, row_verdict,
+                                    verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import Runner
@@ -101,6 +102,11 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
     return decl
 
 
+#: what a quick run's cause taken from the full run says of itself (``cause["of"]``, shown before its text)
+FULL_RUN = "the full run's cause and numbers"
+FULL_RUN_QUOTED = "the full run's cause, this run's numbers"
+
+
 def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str],
                  quick: bool = False) -> dict[str, Any]:
     """A declared claim with its evaluation: holds (True / False / None), the measured numbers, the verdict (a claim a
@@ -113,6 +119,10 @@ def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes
     chosen = calibration_targets().get(f"{paper}.{c['id']}", [])
     out = {k: v for k, v in c.items() if k not in ("cause", "cause_quick")}
     cause = c.get("cause_quick", c.get("cause")) if quick else c.get("cause")
+    if cause:  # this run's numbers written into the text; a quick run showing the full run's reason says so
+        cause = {**cause, "text": fill_numbers(cause["text"], metrics)}
+        if quick and "cause_quick" not in c:
+            cause["of"] = FULL_RUN_QUOTED if quoted_metrics(c["cause"]["text"]) else FULL_RUN
     return {**out, **({"cause": cause} if cause else {}), "scope": c.get("scope", "paper"),
             "headline": bool(c.get("headline", False)), "holds": holds, "measured": text,
             "verdict": verdict(holds, chosen), "refuted": refuted(c, metrics), "favours": favours(c, metrics),

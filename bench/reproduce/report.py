@@ -118,6 +118,11 @@ def _verdict(c: Mapping[str, Any]) -> str:
     return _BOLD.get(v, v) + f" ({NOT_RESOLVED if c.get('favours') else NOT_REFUTED})"
 
 
+def _cause_head(cause: Mapping[str, Any]) -> str:
+    """A cause's kind, and whose reason it is when a quick run shows the full run's (``cause["of"]``)."""
+    return f"{cause['kind']} ({cause['of']})" if cause.get("of") else str(cause["kind"])
+
+
 def _cause(c: Mapping[str, Any], more: str | None, with_note: bool = True) -> str:
     """What explains the verdict: the chosen parameter of a calibration target, the cause of a failing claim
     (or that none is given), else (``with_note``) the compute functions' note, shortened and linked."""
@@ -127,7 +132,7 @@ def _cause(c: Mapping[str, Any], more: str | None, with_note: bool = True) -> st
         alone = {True: "holds", False: "does not hold"}.get(c["holds"], "not evaluated")
         return cell(f"parameter chosen for this outcome: {names} (the numbers alone: {alone})", more)
     if c["holds"] is False and c.get("cause"):
-        return cell(f"{c['cause']['kind']}: {c['cause']['text']}", more)
+        return cell(f"{_cause_head(c['cause'])}: {c['cause']['text']}", more)
     if c["holds"] is False and c.get("scope", "paper") == "paper":
         note = f"; note: {c['why']}" if with_note and c.get("why") else ""
         return cell(f"**no cause given**{note}", more)
@@ -223,7 +228,7 @@ def claims_details(res: PaperResult, decided: Mapping[str, list[str]] | None = N
         if c.get("tolerance_origin"):
             out.append(f"- tolerance from: {c['tolerance_origin']}")
         if c.get("cause"):
-            out.append(f"- cause ({c['cause']['kind']}): {c['cause']['text']}")
+            out.append(f"- cause ({_cause_head(c['cause'])}): {c['cause']['text']}")
         for p in c.get("calibration", []):
             out.append(f"- calibration target: {p['parameter']} ({p['file']}) was chosen for it: {p['ref']}")
         out += decided.get(f"{res.paper}.{c['id']}", [])
