@@ -375,7 +375,7 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
         shown = len(_QUOTED.sub(lambda m: format(-1.2345678, m.group(2) or ".4g"), text))
         if shown > TEXT_LIMIT:
             raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")
-        if "{" in _QUOTED.sub("", text) or "}" in _QUOTED.sub("", text):
+        if set("{}") & set(_QUOTED.sub("", text)):
             raise err(f"{key}.text", _short(text), "braces only around a quoted metric: {metric} or {metric:.3f}")
     try:
         ids = claim_metric_ids(c)

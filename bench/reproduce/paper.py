@@ -16,8 +16,7 @@ from typing import Any, Callable
 
 from bench.report.io import atomic_path
 from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, favours,
-                                    fill_numbers, quoted_metrics, refuted, row_verdict,
-                                    verdict)
+                                    fill_numbers, quoted_metrics, refuted, row_verdict, verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import Runner
