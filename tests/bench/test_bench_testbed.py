@@ -11,7 +11,8 @@ round: the machine is shared), ``us_per_step`` (fastest round over settle + run 
 the same test) and ``our_us_per_step`` (the difference: pybullet queries, our Python and setup),
 and the same three per-step numbers in CPU time (``cpu_*``: ``time.process_time``, less disturbed
 by other jobs on a shared machine than wall time).  The 60 s case is the steady rate; the 10 s
-cases include the per-run setup (~10-20 ms).
+cases include the per-run setup (~10-20 ms; liu_large_radius ~1.7 s, its 1025 x 1025 heightfield's collision
+shape, 3 s before the field got a visual shape of its own: bench/sim/ground.py).
 """
 from __future__ import annotations
 
