@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from bench.reproduce import claims as R
-from bench.reproduce.paper import claim_result, list_papers, load_paper
+from bench.reproduce.paper import FULL_RUN, claim_result, list_papers, load_paper
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
@@ -46,7 +46,7 @@ def test_a_quick_run_shows_cause_quick_and_a_full_run_cause():
     only_full = {k: v for k, v in CLAIM.items() if k != "cause_quick"}
     # no quick cause: the cause, marked as the full run's
     assert claim_result("p", only_full, m, {}, quick=True)["cause"] == {"kind": "testbed", "text": "full",
-                                                                         "of": "the full run's cause and numbers"}
+                                                                         "of": FULL_RUN}
     only_quick = {k: v for k, v in CLAIM.items() if k != "cause"}
     assert "cause" not in claim_result("p", only_quick, m, {})  # a full run never shows a quick run's reason
 

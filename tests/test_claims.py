@@ -16,7 +16,7 @@ import pytest
 
 from bench import reproduce as R
 from bench.reproduce.claims import check_claim, needs_tolerance_origin
-from bench.reproduce.paper import PaperResult, claim_result
+from bench.reproduce.paper import FULL_RUN, FULL_RUN_QUOTED, PaperResult, claim_result
 from bench.reproduce.report import CELL_LIMIT, cell, long_cells, write_paper, write_report
 from bench.reproduce.runner import Runner
 from bench.spec import SpecError
@@ -527,21 +527,41 @@ def test_a_cause_quotes_this_runs_numbers_and_a_quick_run_says_whose_reason_it_s
     assert got["holds"] is False
     assert got["cause"]["text"] == "a = 2.00 against b = 0.3333; net -0.3%; [no metric gone]"
     quick = claim_result("p", claim, metrics, {}, quick=True)["cause"]
-    assert quick == {**got["cause"], "of": "the full run's cause, this run's numbers"}
+    assert quick == {**got["cause"], "of": FULL_RUN_QUOTED}
     plain = {**claim, "cause": {"kind": "method", "text": "0.5 vs 0.4"}}
-    assert claim_result("p", plain, metrics, {}, quick=True)["cause"]["of"] == "the full run's cause and numbers"
+    assert claim_result("p", plain, metrics, {}, quick=True)["cause"]["of"] == FULL_RUN
     own = {**claim, "cause_quick": {"kind": "method", "text": "quick: {a:.1f}"}}
     assert claim_result("p", own, metrics, {}, quick=True)["cause"] == {"kind": "method", "text": "quick: 2.0"}
 
 
-@pytest.mark.parametrize("text, field", [("x {a:.2q}", "format"), ("x {a} and a stray } brace", "braces"),
-                                         ("{a:.3f} " * 60, "as shown")])
+@pytest.mark.parametrize("text, field", [("x {t.a:.2q}", "format"), ("x {t.a} and a stray } brace", "braces"),
+                                         ("{t.a:.3f} " * 60, "as shown"), ("x" * 294 + "{t.a:.2g}", "as shown"),
+                                         ("x {zz.a}", "declared table")])
 def test_a_bad_quoted_metric_is_a_one_line_error(text: str, field: str) -> None:
-    claim = {"id": "c", "text": "t", "source": "s", "kind": "ordering", "metrics": ["a", "b"],
+    """A bad format, a stray brace, a metric of an undeclared table, or a text over 300 characters as shown (a quoted
+    number counted at the longest its format prints: .2g of 1.2e-05 takes 8 characters, 294 + 8 > 300)."""
+    claim = {"id": "c", "text": "t", "source": "s", "kind": "ordering", "metrics": ["t.a", "t.b"],
              "cause": {"kind": "method", "text": text}}
     with pytest.raises(SpecError, match=re.escape(field)) as e:
-        check_claim(Path("p.toml"), 0, claim, set())
+        check_claim(Path("p.toml"), 0, claim, ["t"])
     assert "\n" not in str(e.value) and "claims.c.cause.text" in str(e.value)
+    fine = {**claim, "cause": {"kind": "method", "text": "x" * 292 + "{t.a:.2g}"}}
+    assert check_claim(Path("p.toml"), 0, fine, ["t"]) == []
+
+
+def test_a_quoted_metric_that_is_not_a_finite_number_says_so():
+    from bench.reproduce.claims import fill_numbers
+    import numpy as np
+
+    got = fill_numbers("{a} {b} {c:.1f} {d} {e}", {"a": math.nan, "b": math.inf, "c": np.float32(2.25), "d": True})
+    assert got == "[a: nan] [b: inf] 2.2 [no metric d] [no metric e]"
+
+
+@pytest.mark.parametrize("name", ["claims.json", "quick/claims_quick.json", "extended/claims.json"])
+def test_committed_causes_are_at_most_300_characters_as_printed(name: str) -> None:
+    claims = json.loads((Path(__file__).resolve().parents[1] / "results" / name).read_text())["claims"]
+    assert {k: len(c["cause"]["text"]) for k, c in claims.items()
+            if c.get("cause") and len(c["cause"]["text"]) > 300} == {}
 
 
 def test_a_failing_claim_inside_its_interval_is_marked_not_refuted_in_the_report():

@@ -16,9 +16,10 @@ import pytest
 
 from bench import reproduce as R
 from bench.reproduce.sensitivity import Choice, Edit, choices, flips, papers_using, run_sensitivity, set_value
-from bench.schema import SpecError
+from bench.schema import SpecError, read_toml
 from bench.sources import file_sources
 from bench.spec import SCENARIO_DIR, Scenario, load_platform, load_scenario, load_terrain
+from bench.spec_files import list_scenarios, registered
 from tests.test_claims import reproduce_fake
 
 TOML = textwrap.dedent('''
@@ -271,3 +272,15 @@ def test_a_choice_of_many_parameters_keeps_the_headline_cell_short():
     assert choice_label(few) == ["dubhe.motor.max_current", "tile.model"]
     report = Path(__file__).resolve().parent.parent / "results" / "REPORT.md"
     assert long_cells(report.read_text()) == []
+
+
+def test_no_shipped_scenario_on_a_terrain_with_a_step_requirement_sets_its_own_step():
+    """A terrain's ``dt_max`` (its own, or a sensitivity alternative's) applies only to a scenario that sets no ``dt``
+    (bench.spec._apply_dt_max): a shipped scenario on such a terrain that set one would run the stiff contact at a step
+    that does not resolve it, silently."""
+    with_step = {t for t in registered("terrain") if "dt_max" in read_toml(SCENARIO_DIR / "terrains" / f"{t}.toml")}
+    assert {"tile", "vinyl", "lab_lemniscate"} <= with_step
+    on_them = {name: raw for name in list_scenarios() if (raw := read_toml(SCENARIO_DIR / f"{name}.toml")).get(
+        "terrain") in with_step}
+    assert on_them, "no scenario on those terrains: the check would be vacuous"
+    assert [name for name, raw in on_them.items() if "dt" in raw] == []

@@ -45,7 +45,9 @@ half-width of the seeds' 95 % interval of the ratio): ``num / den + margin`` mus
 failing claim with a margin is *refuted* only when the whole interval lies on the failing side; otherwise the report
 says "not refuted: inside the seeds' 95 % interval" beside "does not hold" (:func:`refuted`), and "the means favour
 the claim" when the point values alone are on its side (:func:`favours`).  A quick run shows a claim's
-``cause_quick`` when it declares one (its fewer seeds and shorter runs give other numbers, sometimes another reason).
+``cause_quick`` when it declares one (its fewer seeds and shorter runs give other numbers, sometimes another reason),
+else its cause marked as the full run's.  A cause text quotes the run's own numbers as ``{<table>.<metric>:.3f}``
+(:func:`bench.reproduce.claims.fill_numbers`).
 
 Metric ids are ``<table>.<metric>`` inside a paper and ``<paper>.<table>.<metric>`` globally.
 A compute function receives a :class:`Context` (cached/parallel simulation, seeds, quick mode,

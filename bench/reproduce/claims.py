@@ -22,10 +22,12 @@ A claim (``scenarios/papers/<paper>.toml``, ``[[claims]]``)::
                                    # runs: its numbers and its reason may differ); without it the quick run shows cause,
                                    # marked as the full run's (its "of")
 
-A cause text quotes this run's numbers as ``{metric}`` or ``{metric:.3f}`` (a metric id the paper computes, a
-Python format; default ``.4g``): :func:`fill_numbers` writes the value in, so a quoted number cannot go stale when
-the code changes, and a quick run shows its own.  A metric the run did not compute is written ``[no metric id]``
-(tests/test_claims.py keeps it out of the committed results).
+A cause text quotes this run's numbers as ``{metric}`` or ``{metric:.3f}`` (a metric ``<table>.<metric>`` of a
+declared table, a Python float format; default ``.4g``): :func:`fill_numbers` writes the value in, so a quoted number
+does not go stale when the code changes, and a quick run shows its own (the words around it, and any number written
+out, stay as declared).  A metric the run did not compute is written ``[no metric id]`` (tests/test_claims.py keeps
+it out of the committed results).  A brace outside a quoted metric is an error; the 300-character limit counts each
+quoted number at about the longest its format prints.
 
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
@@ -41,6 +43,7 @@ produce the outcome: :mod:`bench.reproduce.sources`), "not evaluated" (a metric 
 from __future__ import annotations
 
 import math
+import numbers
 import re
 from pathlib import Path
 from typing import Any, Mapping
@@ -77,13 +80,23 @@ def quoted_metrics(text: str) -> list[tuple[str, str]]:
 
 
 def fill_numbers(text: str, metrics: Mapping[str, float]) -> str:
-    """``text`` with each quoted metric replaced by its value in ``metrics`` (module doc)."""
+    """``text`` with each quoted metric replaced by its value in ``metrics`` (module doc); a metric the run lacks is
+    written ``[no metric id]``, a NaN or infinite one ``[id: nan]`` / ``[id: inf]``."""
     def one(m: re.Match[str]) -> str:
         v = metrics.get(m.group(1))
-        if v is None or not isinstance(v, (int, float)) or not math.isfinite(v):
+        if not isinstance(v, numbers.Real) or isinstance(v, bool):
             return f"[no metric {m.group(1)}]"
+        if not math.isfinite(v):
+            return f"[{m.group(1)}: {v}]"
         return format(v, m.group(2) or ".4g")
     return _QUOTED.sub(one, text)
+
+
+def _longest(spec: str) -> str:
+    """The longest of -1.2345678e-05, -1.2345678 and -12.345678 in the format ``spec`` (the length check of a cause
+    text as shown: a ``g`` format prints a small number longest; tests/test_claims.py checks the committed results'
+    causes as printed)."""
+    return max((format(v, spec) for v in (-1.2345678e-05, -1.2345678, -12.345678)), key=len)
 
 
 def claim_metric_ids(claim: Mapping[str, Any]) -> list[str]:
@@ -328,8 +341,8 @@ def _short(text: Any) -> str:
 def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[str]) -> list[str]:
     """Check one declared claim: raises :class:`SpecError` (file, ``claims.<id>.<field>``, value) on an error;
     returns warnings.  Errors: a missing id, an unknown kind, scope, op, direction, cause kind (``implementation``
-    is refused: a defect is fixed, not reported) or ``published_on``, a quote or cause text over 300 characters, a
-    metric of an undeclared table, a headline claim of scope "beyond".  The requirements of the new schema (a
+    is refused: a defect is fixed, not reported) or ``published_on``, a quote or cause text over 300 characters (as
+    shown), a metric (claimed or quoted in a cause) of an undeclared table, a bad quoted format or a stray brace, a headline claim of scope "beyond".  The requirements of the new schema (a
     ``tolerance_origin`` beside a tolerance, an explicit tolerance of a within claim, known field names) are errors
     for a claim that sets ``headline`` (converted) and warnings for one that does not yet."""
     cid = c.get("id")
@@ -371,8 +384,10 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
             except ValueError:
                 raise err(f"{key}.text", f"{{{metric}:{spec}}}", "a quoted metric's format is a Python float "
                           "format (e.g. .3f, .2g)") from None
-        # its length as shown: a quoted number as long as -1.2345678 in its format
-        shown = len(_QUOTED.sub(lambda m: format(-1.2345678, m.group(2) or ".4g"), text))
+            if metric.split(".")[0] not in table_ids:
+                raise err(f"{key}.text", f"{{{metric}}}", f"a quoted metric '<table>.<metric>' of a declared table "
+                          f"{table_ids}")
+        shown = len(_QUOTED.sub(lambda m: _longest(m.group(2) or ".4g"), text))
         if shown > TEXT_LIMIT:
             raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")
         if set("{}") & set(_QUOTED.sub("", text)):

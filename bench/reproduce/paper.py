@@ -102,8 +102,8 @@ def load_paper(name_or_path: str | Path) -> dict[str, Any]:
 
 
 #: what a quick run's cause taken from the full run says of itself (``cause["of"]``, shown before its text)
-FULL_RUN = "the full run's cause and numbers"
-FULL_RUN_QUOTED = "the full run's cause, this run's numbers"
+FULL_RUN = "full run's"
+FULL_RUN_QUOTED = "full run's; quoted numbers: this run's"
 
 
 def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes: dict[str, str],
