@@ -342,9 +342,10 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
     """Check one declared claim: raises :class:`SpecError` (file, ``claims.<id>.<field>``, value) on an error;
     returns warnings.  Errors: a missing id, an unknown kind, scope, op, direction, cause kind (``implementation``
     is refused: a defect is fixed, not reported) or ``published_on``, a quote or cause text over 300 characters (as
-    shown), a metric (claimed or quoted in a cause) of an undeclared table, a bad quoted format or a stray brace, a headline claim of scope "beyond".  The requirements of the new schema (a
-    ``tolerance_origin`` beside a tolerance, an explicit tolerance of a within claim, known field names) are errors
-    for a claim that sets ``headline`` (converted) and warnings for one that does not yet."""
+    shown), a metric (claimed or quoted in a cause) of an undeclared table, a bad quoted format or a stray brace, a
+    headline claim of scope "beyond".  The requirements of the new schema (a ``tolerance_origin`` beside a tolerance,
+    an explicit tolerance of a within claim, known field names) are errors for a claim that sets ``headline``
+    (converted) and warnings for one that does not yet."""
     cid = c.get("id")
     if not isinstance(cid, str) or not cid:
         raise SpecError(path, f"claims[{i}].id", cid, "every claim needs an id (a string)")
