@@ -312,12 +312,11 @@ def _yi_sentences(out: Mapping[str, Any]) -> list[str]:
         if later:
             changed = [(e, later[e]) for e, (lo, hi) in (("trans", (tlo, thi)), ("yaw", (ylo, yhi)))
                        if comparison(*later[e]) != comparison(lo, hi)]
-            lines[-1] += (" With the wheel speeds read one sample later (see the verdict) both comparisons are "
-                          "the same." if not changed else " With the wheel speeds read one sample later (see the "
-                          "verdict) " + "; ".join(
-                              f"in {'translation' if e == 'trans' else 'yaw'} it {words[comparison(lo, hi)]} it "
-                              f"({1000 * lo:+.1f} to {1000 * hi:+.1f} {'mm' if e == 'trans' else 'mrad'})"
-                              for e, (lo, hi) in changed) + ": decided by the time convention.")
+            lines[-1] += " With the wheel speeds read one sample later (see the verdict) " + (
+                "both comparisons are the same." if not changed else "; ".join(
+                    f"in {'translation' if e == 'trans' else 'yaw'} it {words[comparison(lo, hi)]} it "
+                    f"({1000 * lo:+.1f} to {1000 * hi:+.1f} {'mm' if e == 'trans' else 'mrad'})"
+                    for e, (lo, hi) in changed) + ": decided by the time convention.")
     if lines:
         lines.append(
             "- Missing for Yi's full method (the EKF of Sec. IV, which estimates the slips on line): "
