@@ -136,6 +136,8 @@ def reproduce(papers: list[str] | None = None, *, quick: bool = False, workers: 
             if c.get("verdict") == "does not hold" and not c.get("cause"):
                 log(f"warning: {res.paper}.{c['id']} does not hold and declares no cause "
                     f"([claims.cause{'_quick' if quick else ''}])")
+            for rel in (c.get("cause") or {}).get("stale", []):
+                log(f"warning: {res.paper}.{c['id']}: its cause's words state {rel}, which this run does not meet")
     suffix = "_quick" if quick else ""
     write_documents(results, results_dir, quick)
     atomic_write_json(results_dir / f"runs_manifest{suffix}.json", runner.manifest)

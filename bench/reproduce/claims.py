@@ -29,6 +29,13 @@ out, stay as declared).  A metric the run did not compute is written ``[no metri
 it out of the committed results).  A brace outside a quoted metric is an error; the 300-character limit counts each
 quoted number at about the longest its format prints.
 
+The words around a quoted number ("loses", "vs", "inside the interval") state relations the numbers may stop
+meeting when the code changes.  A cause states them as ``relations = ["a > b", "|a - b| < c", "x < 0.05"]`` (each
+side a quoted-style metric id, a number, or ``|X - Y|`` of two of them; ``<``, ``<=``, ``>``, ``>=``):
+:func:`stale_relations` lists those this run's numbers contradict, the report marks such a cause "stale" and
+tests/test_cause_relations.py keeps the committed results free of them.  A cause text that quotes a metric and
+uses a comparison word (:data:`COMPARISON_WORDS`) must declare its relations.
+
 An ``ordering`` claim (``metrics = [a, b, ...]``, holds when a < b < ...) may name a ``margin`` metric (e.g. two
 standard errors of the difference): it then holds only when a + margin < b at each step, so that an ordering
 inside the measurement's sampling error is not reported as holding.  A ``ratio`` claim may name one the same way
@@ -52,7 +59,7 @@ from bench.spec import SpecError
 
 __all__ = ["CLAIM_KINDS", "CAUSE_KINDS", "SCOPES", "TEXT_LIMIT", "VERDICTS", "claim_metric_ids", "claim_tables", "row_verdict",
            "row_ratio", "evaluate_claim", "refuted", "favours", "fails_if", "verdict", "check_claim", "needs_tolerance_origin",
-           "fill_numbers", "quoted_metrics"]
+           "fill_numbers", "quoted_metrics", "parse_relation", "relation_metrics", "stale_relations", "COMPARISON_WORDS"]
 
 CLAIM_KINDS = ("ordering", "ratio", "trend", "within", "flag")
 CAUSE_KINDS = ("method", "testbed", "protocol", "paper")
@@ -67,6 +74,7 @@ _KIND_FIELDS = {
     "trend": ("series", "direction", "tolerance"), "within": ("metric", "value", "tolerance_abs", "tolerance_rel", "margin"),
     "flag": ("metric", "expect"),
 }
+_CAUSE_FIELDS = ("kind", "text", "relations")
 _COMMON_FIELDS = ("id", "text", "source", "quote", "headline", "scope", "kind", "tolerance_origin", "fails_if",
                   "cause", "cause_quick", "explain_if_fails")
 
@@ -90,6 +98,56 @@ def fill_numbers(text: str, metrics: Mapping[str, float]) -> str:
             return f"[{m.group(1)}: {v}]"
         return format(v, m.group(2) or ".4g")
     return _QUOTED.sub(one, text)
+
+
+#: words of a cause text that compare quoted numbers: such a text declares its ``relations`` (module doc)
+COMPARISON_WORDS = re.compile(r"\b(vs|loses|wins|beats|favours?|rises|falls|grows|above|below|lower|higher|nearer|"
+                              r"inside|outside|against|cancel|exceeds?)\b|[<>]")
+_ID = r"[A-Za-z_][A-Za-z0-9_.]*"
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_ATOM = rf"(?:{_ID}|{_NUM})"
+_TERM = rf"(?:\|\s*{_ATOM}\s*-\s*{_ATOM}\s*\||{_ATOM})"
+_RELATION = re.compile(rf"^\s*({_TERM})\s*(<=|>=|<|>)\s*({_TERM})\s*$")
+_ABS = re.compile(rf"^\|\s*({_ATOM})\s*-\s*({_ATOM})\s*\|$")
+_OPS = {"<": lambda a, b: a < b, "<=": lambda a, b: a <= b, ">": lambda a, b: a > b, ">=": lambda a, b: a >= b}
+
+
+def parse_relation(rel: str) -> tuple[str, str, str] | None:
+    """``(left, op, right)`` of a relation ``"a > b"`` / ``"|a - b| < c"`` (module doc), None when it is not one."""
+    m = _RELATION.match(rel) if isinstance(rel, str) else None
+    return (m.group(1).strip(), m.group(2), m.group(3).strip()) if m else None
+
+
+def relation_metrics(rel: str) -> list[str]:
+    """The metric ids a relation reads (its atoms that are not numbers)."""
+    return [a for a in re.findall(rf"{_NUM}|{_ID}", rel) if not re.fullmatch(_NUM, a)]
+
+
+def _term_value(term: str, metrics: Mapping[str, float]) -> float | None:
+    def atom(a: str) -> float | None:
+        a = a.strip()
+        if re.fullmatch(_NUM, a):
+            return float(a)
+        v = metrics.get(a)
+        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+        return float(v) if ok else None
+    if m := _ABS.match(term):
+        vx, vy = atom(m.group(1)), atom(m.group(2))
+        return None if vx is None or vy is None else abs(vx - vy)
+    return atom(term)
+
+
+def stale_relations(relations: list[str], metrics: Mapping[str, float]) -> list[str]:
+    """The relations of a cause (module doc) this run's numbers do not meet, each with the two sides' values
+    (``"a > b (0.12 vs 0.15)"``); one whose metric the run lacks is stale too (``n/a``)."""
+    stale = []
+    for rel in relations:
+        left, op, right = parse_relation(rel) or (rel, "<", rel)
+        a, b = _term_value(left, metrics), _term_value(right, metrics)
+        if a is None or b is None or not _OPS[op](a, b):
+            show = ["n/a" if v is None else format(v, ".4g") for v in (a, b)]
+            stale.append(f"{rel} ({show[0]} vs {show[1]})")
+    return stale
 
 
 def _longest(spec: str) -> str:
@@ -388,6 +446,21 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
             if metric.split(".")[0] not in table_ids:
                 raise err(f"{key}.text", f"{{{metric}}}", f"a quoted metric '<table>.<metric>' of a declared table "
                           f"{table_ids}")
+        relations = cause.get("relations", [])
+        if not isinstance(relations, list):
+            raise err(f"{key}.relations", relations, 'a list of relations, e.g. ["a.x > a.y", "|a.x - a.y| < 0.1"]')
+        for rel in relations:
+            if parse_relation(rel) is None:
+                raise err(f"{key}.relations", rel, "a relation 'X op Y' (op one of <, <=, >, >=; X, Y a metric id, "
+                          "a number or |A - B|)")
+            for metric in relation_metrics(rel):
+                if metric.split(".")[0] not in table_ids:
+                    raise err(f"{key}.relations", rel, f"metrics '<table>.<metric>' of a declared table {table_ids}")
+        if quoted_metrics(text) and not relations and (w := COMPARISON_WORDS.search(_QUOTED.sub("", text))):
+            raise err(f"{key}.relations", None, f"the text quotes a metric and compares (\"{w.group(0)}\"): state "
+                      "the relations its words claim, checked on every run")
+        if set(cause) - set(_CAUSE_FIELDS):
+            raise err(key, sorted(set(cause) - set(_CAUSE_FIELDS)), f"fields among {_CAUSE_FIELDS}")
         shown = len(_QUOTED.sub(lambda m: _longest(m.group(2) or ".4g"), text))
         if shown > TEXT_LIMIT:
             raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")

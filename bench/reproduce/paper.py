@@ -16,7 +16,8 @@ from typing import Any, Callable
 
 from bench.report.io import atomic_path
 from bench.reproduce.claims import (check_claim, check_published_on, claim_tables, evaluate_claim, fails_if, favours,
-                                    fill_numbers, quoted_metrics, refuted, row_verdict, verdict)
+                                    fill_numbers, quoted_metrics, refuted, row_verdict, stale_relations,
+                                    verdict)
 from bench.reproduce.provenance import code_key
 from bench.reproduce.report import write_paper
 from bench.reproduce.runner import Runner
@@ -120,6 +121,8 @@ def claim_result(paper: str, c: dict[str, Any], metrics: dict[str, float], notes
     cause = c.get("cause_quick", c.get("cause")) if quick else c.get("cause")
     if cause:  # this run's numbers written into the text; a quick run showing the full run's reason says so
         cause = {**cause, "text": fill_numbers(cause["text"], metrics)}
+        if holds is False and (stale := stale_relations(cause.get("relations", []), metrics)):
+            cause["stale"] = stale  # the words state what this run's numbers no longer meet
         if quick and "cause_quick" not in c:
             cause["of"] = FULL_RUN_QUOTED if quoted_metrics(c["cause"]["text"]) else FULL_RUN
     return {**out, **({"cause": cause} if cause else {}), "scope": c.get("scope", "paper"),

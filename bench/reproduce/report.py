@@ -119,8 +119,11 @@ def _verdict(c: Mapping[str, Any]) -> str:
 
 
 def _cause_head(cause: Mapping[str, Any]) -> str:
-    """A cause's kind, and whose reason it is when a quick run shows the full run's (``cause["of"]``)."""
-    return f"{cause['kind']} ({cause['of']})" if cause.get("of") else str(cause["kind"])
+    """A cause's kind, whose reason it is when a quick run shows the full run's (``cause["of"]``), and a mark when
+    this run's numbers contradict a relation its words state (``cause["stale"]``:
+    :func:`bench.reproduce.claims.stale_relations`)."""
+    head = f"{cause['kind']} ({cause['of']})" if cause.get("of") else str(cause["kind"])
+    return f"{head}, **stale: this run's numbers contradict its words**" if cause.get("stale") else head
 
 
 def _cause(c: Mapping[str, Any], more: str | None, with_note: bool = True) -> str:
@@ -229,6 +232,7 @@ def claims_details(res: PaperResult, decided: Mapping[str, list[str]] | None = N
             out.append(f"- tolerance from: {c['tolerance_origin']}")
         if c.get("cause"):
             out.append(f"- cause ({_cause_head(c['cause'])}): {c['cause']['text']}")
+            out += [f"- not met by this run: {rel}" for rel in c["cause"].get("stale", [])]
         for p in c.get("calibration", []):
             out.append(f"- calibration target: {p['parameter']} ({p['file']}) was chosen for it: {p['ref']}")
         out += decided.get(f"{res.paper}.{c['id']}", [])
