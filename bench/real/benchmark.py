@@ -234,9 +234,10 @@ def run_real_benchmark(data_path: str | Path, out_dir: str | Path, seed: int = 0
         name = data_path.stem
     allw, w, findings = scored_windows(data_path, r)
     n_excluded = allw.n_windows - w.n_windows  # a non-finite input sample or reference end (valid_windows)
-    fixed_w, fixed = apply_fixes(w, fixes)
+    measured = {"imu_offset", "align_gyro"} & set(fixes)  # measured on the calibration half only, so after the split
+    fixed_w, fixed = apply_fixes(w, [f for f in fixes if f not in measured])  # the windows the split is drawn from
     calib_steps, test_steps = split_steps(fixed_w, seed)
-    if {"imu_offset", "align_gyro"} & set(fixes):  # measured again on the calibration half only (same windows)
+    if measured:  # the same windows: these two change the gyro and accelerometers, never which windows are kept
         fixed_w, fixed = apply_fixes(w, fixes, measure_on=np.isin(w.calib_step, calib_steps))
     w = fixed_w
     calib = w.subset(np.isin(w.calib_step, calib_steps))

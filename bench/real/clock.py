@@ -24,6 +24,7 @@ beyond a window's ends from the table's previous / next row when that row is the
 from __future__ import annotations
 
 import dataclasses
+from typing import Collection
 
 import numpy as np
 
@@ -62,21 +63,23 @@ def stream_offset(ref_rate: np.ndarray, stream: np.ndarray) -> tuple[float, np.n
     return float(SHIFTS[int(np.nanargmin(rss))]), rss
 
 
-def offsets(w: DriveWindows) -> dict[str, float]:
-    """The offsets [samples] of the streams the table has (module docstring): ``imu_gz``, ``wheels_forward``,
-    ``wheels_turn``."""
+def offsets(w: DriveWindows, streams: Collection[str] = ("imu_gz", "wheels_forward", "wheels_turn")) -> dict[str, float]:
+    """The offsets [samples] of the streams the table has (module docstring), of those in ``streams``: ``imu_gz``,
+    ``wheels_forward``, ``wheels_turn``."""
     if not all(w.has(c) for c in ("ref_x", "ref_y", "ref_yaw")) or w.n_samples < 2 * MAX_SHIFT + 3:
         return {}
     x, y, yaw = (np.asarray(w[c], float) for c in ("ref_x", "ref_y", "ref_yaw"))
     yaw_rate = np.diff(yaw, axis=1) / w.dt
     forward = (np.cos(yaw[:, :-1]) * np.diff(x, axis=1) + np.sin(yaw[:, :-1]) * np.diff(y, axis=1)) / w.dt
     out: dict[str, float] = {}
-    if w.has("imu_gz"):
+    if "imu_gz" in streams and w.has("imu_gz"):
         out["imu_gz"] = stream_offset(yaw_rate, np.asarray(w["imu_gz"], float))[0]
-    if w.has("enc_wl") and w.has("enc_wr"):
+    if {"wheels_forward", "wheels_turn"} & set(streams) and w.has("enc_wl") and w.has("enc_wr"):
         wl, wr = np.asarray(w["enc_wl"], float), np.asarray(w["enc_wr"], float)
-        out["wheels_forward"] = stream_offset(forward, (wl + wr) / 2.0)[0]
-        out["wheels_turn"] = stream_offset(yaw_rate, wr - wl)[0]
+        if "wheels_forward" in streams:
+            out["wheels_forward"] = stream_offset(forward, (wl + wr) / 2.0)[0]
+        if "wheels_turn" in streams:
+            out["wheels_turn"] = stream_offset(yaw_rate, wr - wl)[0]
     return {k: v for k, v in out.items() if np.isfinite(v)}  # a stream without the reference's motion: no offset
 
 

@@ -399,7 +399,7 @@ def apply_fixes(w: DriveWindows, fixes: Sequence[str], where: str = "--fix",
     if "align_gyro" in fixes and w.has("imu_gz"):  # measured after the flip and the offset, like them
         from bench.real.clock import offsets, shift_stream
 
-        s = offsets(out if measure_on is None else out.subset(np.asarray(measure_on, bool))).get("imu_gz")
+        s = offsets(out if measure_on is None else out.subset(np.asarray(measure_on, bool)), ("imu_gz",)).get("imu_gz")
         if s is None:  # no gyro signal to time against the reference: nothing to shift
             done.append("align_gyro: no offset measured (imu_gz does not follow the reference's yaw rate)")
         else:
