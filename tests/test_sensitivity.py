@@ -8,6 +8,7 @@ headline claim that a choice decides (a fake paper, as tests/test_claims.py buil
 from __future__ import annotations
 
 import json
+import subprocess
 import textwrap
 import tomllib
 from pathlib import Path
@@ -284,3 +285,36 @@ def test_no_shipped_scenario_on_a_terrain_with_a_step_requirement_sets_its_own_s
         "terrain") in with_step}
     assert on_them, "no scenario on those terrains: the check would be vacuous"
     assert [name for name, raw in on_them.items() if "dt" in raw] == []
+
+
+def test_the_study_says_whether_its_base_ran_other_code(tmp_path):
+    """code_differs against a throwaway git history: a commit that only writes results/ runs the same code as its
+    parent, one that edits code does not, an unknown commit cannot be compared; the study's header says which."""
+    from bench.reproduce.provenance import code_differs
+    from bench.reproduce.sensitivity import _markdown
+
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-c", "user.email=t@t", "-c", "user.name=t", *args], cwd=tmp_path, check=True,
+                              capture_output=True, text=True).stdout.strip()
+
+    git("init", "-q")
+    (tmp_path / "code.py").write_text("x = 1\n")
+    git("add", "-A"), git("commit", "-qm", "code")
+    code = git("rev-parse", "HEAD")
+    (tmp_path / "results").mkdir()
+    (tmp_path / "results" / "claims.json").write_text("{}\n")
+    git("add", "-A"), git("commit", "-qm", "results")
+    results = git("rev-parse", "HEAD")
+    (tmp_path / "code.py").write_text("x = 2\n")
+    git("add", "-A"), git("commit", "-qm", "more code")
+    more = git("rev-parse", "HEAD")
+    assert code_differs(code, results, tmp_path) is False and code_differs(results, results, tmp_path) is False
+    assert code_differs(results, more, tmp_path) is True and code_differs(results, results + "+dirty", tmp_path) is True
+    assert code_differs(code, "0" * 40, tmp_path) is None
+
+    def header(differs):
+        doc = {"base_file": "claims.json", "base_commit": code, "commit": results, "code_differs": differs,
+               "choices": []}
+        return next(ln for ln in _markdown(doc).splitlines() if ln.startswith("Base:"))
+    assert "results/ only: the same code" in header(False)
+    assert "**different code**" in header(True) and "not compared here" in header(None)

@@ -97,6 +97,21 @@ def git_commit() -> str:
         return "unknown"  # (results/ itself is excluded from the dirty check: reproduce writes it)
 
 
+def code_differs(a: str, b: str, repo: Path = REPO) -> bool | None:
+    """Whether commits ``a`` and ``b`` differ outside ``results/`` (a "+dirty" mark counts as a difference); None
+    when git cannot tell (no repository, an unknown commit)."""
+    if "dirty" in a or "dirty" in b:
+        return True
+    if a == b:
+        return False
+    try:
+        out = subprocess.run(["git", "diff", "--name-only", a, b, "--", ".", ":!results"], cwd=repo,
+                             capture_output=True, text=True, check=True)
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return bool(out.stdout.strip())
+
+
 def package_versions() -> dict[str, str]:
     from importlib import metadata
 

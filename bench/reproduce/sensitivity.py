@@ -194,7 +194,9 @@ def _markdown(doc: Mapping[str, Any]) -> str:
              "or fails at the testbed's choice**, not at a published number "
              "([bench/reproduce/sensitivity.py](../../bench/reproduce/sensitivity.py)).", "",
              f"Base: `{doc['base_file']}` at commit `{doc['base_commit'][:12]}`; this run at `{doc['commit'][:12]}`"
-             + ("" if doc["base_commit"] == doc["commit"] else " (**different commits**: a change may be the code's)")
+             + {False: "" if doc["base_commit"] == doc["commit"] else " (they differ in results/ only: the same code)",
+                True: " (**different code**: a change may be the code's)",
+                None: " (**different commits**, not compared here: a change may be the code's)"}[doc.get("code_differs")]
              + ".", ""]
     for c in doc["choices"]:
         files = sorted({e["name"].split(".", 1)[0] for e in c["edits"]})
@@ -226,15 +228,16 @@ def base_files() -> tuple[Path, Path]:
 def run_sensitivity(results_dir: Path, workers: int = 1, base_file: Path | None = None,
                     root: Path = SCENARIO_DIR) -> dict[str, Any]:
     """The study (module docstring): writes ``sensitivity.md|json`` in ``results_dir``; returns the document."""
-    from bench.reproduce.provenance import git_commit
+    from bench.reproduce.provenance import code_differs, git_commit
     from bench.reproduce.paper import list_papers
 
     base_file = Path(base_file or base_files()[0])
     base_doc = json.loads(base_file.read_text())
     base = base_doc["claims"]
     manifest = json.loads((base_file.parent / "runs_manifest.json").read_text())
-    doc: dict[str, Any] = {"commit": git_commit(), "base_commit": str(base_doc.get("commit", "")),
-                           "base_file": base_file.name, "choices": []}
+    commit, base_commit = git_commit(), str(base_doc.get("commit", ""))
+    doc: dict[str, Any] = {"commit": commit, "base_commit": base_commit, "base_file": base_file.name,
+                           "code_differs": code_differs(base_commit, commit), "choices": []}
     for choice in choices(root):
         papers = papers_using(choice, manifest, list_papers(), root)
         rows = flips(base, run_choice(choice, papers, workers, root), papers) if papers else []
