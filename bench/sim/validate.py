@@ -335,12 +335,8 @@ def _motor_line(base: Scenario) -> Check:
 
 #: physics checks the testbed fails today, each with its named defect: reported as such (a known failure does not
 #: make ``validate-testbed`` exit 1; any other failure does), and tests/test_validate_testbed.py fails once one passes
-KNOWN_DEFECTS: dict[str, str] = {
-    "ramp_holding_torque": "testbed defect: bench/sim/testbed.py caps a contact's force at k_max |s| "
-                           "(k_max = 0.13 m/dt), so a held robot on 15 deg creeps at m g sin / (4 k_max) = 0.041 m/s "
-                           "(the bristle hold acts only below 0.02 m/s); the only claims on a ramp are Yu's, all "
-                           "calibration targets",
-}
+KNOWN_DEFECTS: dict[str, str] = {}  # empty since the ramp terrains declare dt_max = 1/480 s: at 1/120 s the contact
+# force cap k_max |s| (k_max = 0.13 m/dt, bench/sim/testbed.py) let a robot held on 15 deg creep at 0.041 m/s
 
 
 def unexpected_failures(checks: list[Check]) -> list[Check]:
