@@ -153,6 +153,23 @@ def test_the_report_paragraph_names_steps_and_words_the_cause_as_unmeasured():
     assert "nan" not in nan.lower().replace("not measured", "")
     quiet = _stalls_text(_stalls(steps=[]), 10)
     assert "None of the 10 held-out steps stalls." in quiet
+    spin = _stalls_text(_stalls(spin_like={"held_out": {"n": 5, "stalled": 1}, "calibration": {"n": 4, "stalled": 0}}),
+                        10)
+    assert "1 of 5 stall held out and 0 of 4 in the calibration half" in spin and "spin" not in one
+
+
+def test_spin_like_steps_by_hand():
+    """Half-sum (w_l + w_r)/2 and half-difference (w_r - w_l)/2 of the step's mean command: a spin when the
+    half-difference exceeds SPIN_MIN and the half-sum is under SPIN_SHARE of it; a step's windows are averaged."""
+    from bench.real.stall import SPIN_MIN, SPIN_SHARE, spin_like_steps
+
+    assert (SPIN_SHARE, SPIN_MIN) == (0.5, 3.0)
+    # per window (w_l, w_r): step 1 (-4, 4) spin; 2 (2, 6) half-sum 4 > 0.5 * 2; 3 (-2, 2) half-difference 2 < 3;
+    # 4 mean of (-6, 2) and (-4, 4) = (-5, 3): half-sum -1, half-difference 4: spin; 5 (1, 8): 4.5 > 0.5 * 3.5
+    cmd = np.array([[-4, 4], [2, 6], [-2, 2], [-6, 2], [-4, 4], [1, 8]], float)
+    table = {"cmd_wl": np.repeat(cmd[:, :1], 3, axis=1), "cmd_wr": np.repeat(cmd[:, 1:], 3, axis=1)}
+    w = type("W", (), {"calib_step": np.array([1, 2, 3, 4, 4, 5]), "__getitem__": lambda self, c: table[c]})()
+    assert spin_like_steps(w, [1, 2, 3, 4, 5, 9]) == [1, 4]
 
 
 HUSKY = Path(__file__).resolve().parents[2] / "shared" / "data" / "drive_husky" / "husky_windows.parquet"

@@ -190,7 +190,7 @@ from bench.real.turn_response import identify_turn_response, steady_turns
 from bench.real.transient_response import identify_transient_response
 from bench.real.gap_report import _figure, _markdown
 from bench.real.held_out import score_held_out, step_residuals, wheel_series
-from bench.real.stall import STALL_RATIO, motion_ratio, run_series, stall_summary
+from bench.real.stall import STALL_RATIO, motion_ratio, run_series, spin_like_steps, stall_summary
 from bench.real.io import _atomic_write_text
 from bench.report.io import dumps_json
 from bench.run import Run
@@ -459,6 +459,10 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
         "calibration_steps": [s for s in order if s in calib
                               and motion_ratio(run_series(step_runs[s]), radius, track) < STALL_RATIO],
         "n_calibration": len(calib)}
+    st = held_out["stalls"]  # the steps commanded like a spin, and how many of them stall, per half
+    st["spin_like"] = {half: {"n": len(spin), "stalled": len(set(spin) & set(stalled))} for half, spin, stalled in (
+        ("held_out", spin_like_steps(w, held), st["steps"]),
+        ("calibration", spin_like_steps(w, [s for s in order if s in calib]), st["calibration_steps"]))}
     tracking = command_tracking(w, radius, track)
     cmd = np.concatenate([np.abs(w["cmd_wl"]).ravel(), np.abs(w["cmd_wr"]).ravel()])
     enc = np.concatenate([np.abs(w["enc_wl"]).ravel(), np.abs(w["enc_wr"]).ravel()])

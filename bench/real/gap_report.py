@@ -16,6 +16,7 @@ from bench.real.command_response import CHI2_ADOPT, MIN_BEYOND, MIN_WINDOWS
 from bench.real.transient_response import Z_ADOPT as TRANS_Z
 from bench.real.turn_response import K_SIM, TIE as TURN_TIE, TORQUE_GRID, Z_ADOPT as TURN_Z
 from bench.real.held_out import MIN_REGIME_SHARE
+from bench.real.stall import SPIN_MIN, SPIN_SHARE
 from bench.real.io import _new_figure, _save_figure
 
 
@@ -338,9 +339,20 @@ def _stalls_text(st: Mapping[str, Any], n_held: int) -> str:
             f"final model {pct(st['model_median'])}): {model}. They carry {pct(st['share_of_final_cost'])} of the "
             f"held-out final cost; over the other {st['n_others']} steps the final model's mean cost is "
             f"{100 * st['others_final_over_nominal']:.1f} % of the nominal's. " + cal + unmeasured
+            + _spin_like_text(st.get("spin_like"))
             + ("What stops the robot is not measured (a hard turn at the treads' traction limit would; no effect of "
                "the catalogue stalls a turn). " if both < n else "")
             + "The score above keeps these steps whole.\n")
+
+
+def _spin_like_text(spin: Mapping[str, Mapping[str, int]] | None) -> str:
+    """How many of the steps commanded like a spin (:func:`bench.real.stall.spin_like_steps`) stall, per half."""
+    if not spin:
+        return ""
+    h, c = spin["held_out"], spin["calibration"]
+    return (f"Of the steps commanded like a spin (mean wheel-speed command under {SPIN_SHARE:g} of its half-difference, "
+            f"which exceeds {SPIN_MIN:g} rad/s), {h['stalled']} of {h['n']} stall held out and {c['stalled']} of "
+            f"{c['n']} in the calibration half, where the model was fitted. ")
 
 
 def _figure(res: GapResult, held_out: Mapping[str, Any], wheels: Mapping[str, Mapping[str, np.ndarray]],

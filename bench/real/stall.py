@@ -26,13 +26,17 @@ import numpy as np
 
 from bench.gap.residuals import measured_channels
 
-__all__ = ["STALL_RATIO", "SETTLE", "BLOCK", "motion_ratio", "run_series", "space_series", "stall_summary"]
+__all__ = ["STALL_RATIO", "SETTLE", "BLOCK", "SPIN_SHARE", "SPIN_MIN", "motion_ratio", "run_series", "space_series",
+           "spin_like_steps", "stall_summary"]
 
 STALL_RATIO = 0.2  # testbed choice, diagnostic only: set after the Husky's worst held-out steps were seen (0.0-0.2
 #                    there, 0.4-0.8 on most steps); it changes no fit and no score
 SETTLE = 2.0  # [s] the start of a step left out (DRIVE's transitory window)
 BLOCK = 0.5  # [s] reference displacement taken over blocks this long (the ICP's noise is mm, a stalled body's
 #              motion over a block cm)
+SPIN_SHARE, SPIN_MIN = 0.5, 3.0  # testbed choices, diagnostic only (set after the Husky's stalls were seen): a step
+#   is commanded like a spin when its mean wheel-speed command is under SPIN_SHARE of its half-difference, and the
+#   half-difference above SPIN_MIN [rad/s]
 Series = Mapping[str, tuple[np.ndarray, np.ndarray]]  # channel -> (t [s], values [SI])
 
 
@@ -103,6 +107,23 @@ def space_series(space: Any, raw: Mapping[str, np.ndarray] | None = None) -> dic
     for c in ("enc_wl", "enc_wr", "imu_gz", "ref_x", "ref_y"):
         if c in space.channels:
             out[c] = (space.t[c], space.meas[c] if raw is None else space.meas[c] - raw[c])
+    return out
+
+
+def spin_like_steps(w: Any, steps: Sequence[int]) -> list[int]:
+    """The ``steps`` (``calib_step`` ids of a DRIVE window table ``w``) commanded like a spin: the mean over the
+    step's windows of the commanded half-sum ``(w_l + w_r)/2`` is under :data:`SPIN_SHARE` of the half-difference
+    ``(w_r - w_l)/2``, and that above :data:`SPIN_MIN` rad/s."""
+    step = np.asarray(w.calib_step)
+    out = []
+    for s in steps:
+        rows = step == s
+        if not rows.any():
+            continue
+        cl, cr = float(np.nanmean(np.asarray(w["cmd_wl"])[rows])), float(np.nanmean(np.asarray(w["cmd_wr"])[rows]))
+        half_sum, half_diff = 0.5 * (cl + cr), 0.5 * (cr - cl)
+        if abs(half_diff) > SPIN_MIN and abs(half_sum) < SPIN_SHARE * abs(half_diff):
+            out.append(int(s))
     return out
 
 
