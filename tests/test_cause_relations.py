@@ -69,7 +69,10 @@ def test_the_details_page_lists_what_the_run_does_not_meet():
     ({"kind": "method", "text": "a {t.a} loses", "relations": ["t.a >> t.b"]}, "a relation 'X op Y'"),
     ({"kind": "method", "text": "a {t.a} loses", "relations": ["zz.a > t.b"]}, "of a declared table"),
     ({"kind": "method", "text": "a {t.a} loses", "relations": "t.a > t.b"}, "a list of relations"),
-    ({"kind": "method", "text": "x", "relation": ["t.a > t.b"]}, "fields among"),
+    ({"kind": "method", "text": "a {t.a} vs b {t.b}", "relation": ["t.a > t.b"]}, "fields among"),
+    ({"kind": "method", "text": "a {t.a} is within 1 % of b {t.b}"}, "state the relations"),
+    ({"kind": "method", "text": "A {t.a}. Loses to b."}, "state the relations"),
+    ({"kind": "method", "text": "a {t.a} loses", "relations": ["1 < 2"]}, "reads a metric"),
 ])
 def test_a_cause_that_compares_without_stating_or_with_a_bad_relation_is_a_one_line_error(cause, match):
     claim = {"id": "c", "text": "t", "source": "s", "kind": "ordering", "metrics": ["t.a", "t.b"], "cause": cause}

@@ -311,6 +311,7 @@ def test_the_study_says_whether_its_base_ran_other_code(tmp_path):
     assert code_differs(code, results, tmp_path) is False and code_differs(results, results, tmp_path) is False
     assert code_differs(results, more, tmp_path) is True and code_differs(results, results + "+dirty", tmp_path) is True
     assert code_differs(code, "0" * 40, tmp_path) is None
+    assert code_differs("unknown", "unknown", tmp_path) is None and code_differs("", "", tmp_path) is None
 
     def header(differs):
         doc = {"base_file": "claims.json", "base_commit": code, "commit": results, "code_differs": differs,

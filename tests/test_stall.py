@@ -156,6 +156,9 @@ def test_the_report_paragraph_names_steps_and_words_the_cause_as_unmeasured():
     spin = _stalls_text(_stalls(spin_like={"held_out": {"n": 5, "stalled": 1}, "calibration": {"n": 4, "stalled": 0}}),
                         10)
     assert "1 of 5 stall held out and 0 of 4 in the calibration half" in spin and "spin" not in one
+    none_held = _stalls_text(_stalls(steps=[], calibration_steps=[17], spin_like={"held_out": {"n": 5, "stalled": 0},
+                                                                                  "calibration": {"n": 4, "stalled": 1}}), 10)
+    assert "None of the 10 held-out steps stalls." in none_held and "0 of 5 stall held out and 1 of 4" in none_held
 
 
 def test_spin_like_steps_by_hand():

@@ -66,6 +66,8 @@ def stream_offset(ref_rate: np.ndarray, stream: np.ndarray) -> tuple[float, np.n
 def offsets(w: DriveWindows, streams: Collection[str] = ("imu_gz", "wheels_forward", "wheels_turn")) -> dict[str, float]:
     """The offsets [samples] of the streams the table has (module docstring), of those in ``streams``: ``imu_gz``,
     ``wheels_forward``, ``wheels_turn``."""
+    if isinstance(streams, str):
+        raise TypeError(f"offsets: streams is a collection of names, not the string {streams!r}")
     if not all(w.has(c) for c in ("ref_x", "ref_y", "ref_yaw")) or w.n_samples < 2 * MAX_SHIFT + 3:
         return {}
     x, y, yaw = (np.asarray(w[c], float) for c in ("ref_x", "ref_y", "ref_yaw"))

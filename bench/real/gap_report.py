@@ -331,7 +331,8 @@ def _stalls_text(st: Mapping[str, Any], n_held: int) -> str:
     unmeasured = (f"{st['n_unmeasured']} held-out step(s) without a measured ratio are in neither group. "
                   if st.get("n_unmeasured") else "")
     if not st["steps"]:
-        return head + f"None of the {n_held} held-out steps stalls. " + cal + unmeasured + "\n"
+        return (head + f"None of the {n_held} held-out steps stalls. " + cal + unmeasured
+                + _spin_like_text(st.get("spin_like")) + "\n")
     n, both = len(st["steps"]), st["model_stalls"]
     model = ("the final model stalls on none of them" if both == 0 else
              f"the final model stalls on {both} of them" if both < n else "the final model stalls on all of them")

@@ -101,8 +101,9 @@ def fill_numbers(text: str, metrics: Mapping[str, float]) -> str:
 
 
 #: words of a cause text that compare quoted numbers: such a text declares its ``relations`` (module doc)
-COMPARISON_WORDS = re.compile(r"\b(vs|loses|wins|beats|favours?|rises|falls|grows|above|below|lower|higher|nearer|"
-                              r"inside|outside|against|cancel|exceeds?)\b|[<>]")
+COMPARISON_WORDS = re.compile(r"\b(vs|loses|wins|beats|favours?|rises|falls|grows|above|below|under|over|lower|higher|"
+                              r"less|more|than|smaller|larger|greater|best|worst|lowest|highest|nearer|within|inside|"
+                              r"outside|against|cancel|exceeds?)\b|[<>]", re.IGNORECASE)
 _ID = r"[A-Za-z_][A-Za-z0-9_.]*"
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _ATOM = rf"(?:{_ID}|{_NUM})"
@@ -432,6 +433,8 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
         cause = c[key]
         if not isinstance(cause, Mapping):
             raise err(key, cause, "a table {kind = ..., text = ...}")
+        if set(cause) - set(_CAUSE_FIELDS):
+            raise err(key, sorted(set(cause) - set(_CAUSE_FIELDS)), f"fields among {_CAUSE_FIELDS}")
         if cause.get("kind") not in CAUSE_KINDS:
             raise err(f"{key}.kind", cause.get("kind"), f"one of {CAUSE_KINDS} (a defect of ours is fixed, not a cause)")
         text = cause.get("text")
@@ -453,14 +456,15 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
             if parse_relation(rel) is None:
                 raise err(f"{key}.relations", rel, "a relation 'X op Y' (op one of <, <=, >, >=; X, Y a metric id, "
                           "a number or |A - B|)")
+            if not relation_metrics(rel):
+                raise err(f"{key}.relations", rel, "a relation that reads a metric of the run (numbers alone are "
+                          "checked once, here, and never go stale)")
             for metric in relation_metrics(rel):
                 if metric.split(".")[0] not in table_ids:
                     raise err(f"{key}.relations", rel, f"metrics '<table>.<metric>' of a declared table {table_ids}")
         if quoted_metrics(text) and not relations and (w := COMPARISON_WORDS.search(_QUOTED.sub("", text))):
             raise err(f"{key}.relations", None, f"the text quotes a metric and compares (\"{w.group(0)}\"): state "
                       "the relations its words claim, checked on every run")
-        if set(cause) - set(_CAUSE_FIELDS):
-            raise err(key, sorted(set(cause) - set(_CAUSE_FIELDS)), f"fields among {_CAUSE_FIELDS}")
         shown = len(_QUOTED.sub(lambda m: _longest(m.group(2) or ".4g"), text))
         if shown > TEXT_LIMIT:
             raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")

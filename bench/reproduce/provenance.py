@@ -100,6 +100,8 @@ def git_commit() -> str:
 def code_differs(a: str, b: str, repo: Path = REPO) -> bool | None:
     """Whether commits ``a`` and ``b`` differ outside ``results/`` (a "+dirty" mark counts as a difference); None
     when git cannot tell (no repository, an unknown commit)."""
+    if not a or not b or "unknown" in (a, b):  # git_commit() could not tell: nothing to compare
+        return None
     if "dirty" in a or "dirty" in b:
         return True
     if a == b:
