@@ -29,6 +29,12 @@ def test_relations_are_evaluated_as_written():
     assert stale_relations(["|t.a - t.b| < 0.07"], m) == ["|t.a - t.b| < 0.07 (0.076 vs 0.07)"]
     assert stale_relations(["t.a < 0.171", "t.b > t.a"], m) == ["t.a < 0.171 (0.171 vs 0.171)", "t.b > t.a (0.095 vs 0.171)"]
     assert stale_relations(["t.n < 1", "t.gone > 0"], m) == ["t.n < 1 (n/a vs 1)", "t.gone > 0 (n/a vs 0)"]
+    # ratios: 1.485 / 1.494 - 1 = -0.602 %, inside 1 %, outside 0.5 %; a zero denominator is stale
+    assert parse_relation("|t.path / t.chi - 1| < 0.01") == ("|t.path / t.chi - 1|", "<", "0.01")
+    assert stale_relations(["|t.path / t.chi - 1| < 0.01", "t.b / t.a < 0.56"], m) == []
+    assert stale_relations(["|t.path / t.chi - 1| < 0.005"], m) == ["|t.path / t.chi - 1| < 0.005 (0.006024 vs 0.005)"]
+    assert stale_relations(["t.a / t.z > 0"], {**m, "t.z": 0.0}) == ["t.a / t.z > 0 (n/a vs 0)"]
+    assert parse_relation("t.a / t.b / t.c < 1") is None
 
 
 def _metrics(name: str, paper: str) -> dict[str, float]:

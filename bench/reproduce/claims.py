@@ -30,8 +30,9 @@ it out of the committed results).  A brace outside a quoted metric is an error; 
 quoted number at about the longest its format prints.
 
 The words around a quoted number ("loses", "vs", "inside the interval") state relations the numbers may stop
-meeting when the code changes.  A cause states them as ``relations = ["a > b", "|a - b| < c", "x < 0.05"]`` (each
-side a quoted-style metric id, a number, or ``|X - Y|`` of two of them; ``<``, ``<=``, ``>``, ``>=``):
+meeting when the code changes.  A cause states them as ``relations = ["a > b", "|a - b| < c", "|a / b - 1| < 0.005"]``
+(each side a quoted-style metric id, a number, the ratio ``X / Y`` of two, or ``|X - Y|`` of two of those; ``<``,
+``<=``, ``>``, ``>=``; a zero denominator makes the relation stale):
 :func:`stale_relations` lists those this run's numbers contradict, the report marks such a cause "stale" and
 tests/test_cause_relations.py keeps the committed results free of them.  A cause text that quotes a metric and
 uses a comparison word (:data:`COMPARISON_WORDS`) must declare its relations.
@@ -107,14 +108,16 @@ COMPARISON_WORDS = re.compile(r"\b(vs|loses|wins|beats|favours?|rises|falls|grow
 _ID = r"[A-Za-z_][A-Za-z0-9_.]*"
 _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _ATOM = rf"(?:{_ID}|{_NUM})"
-_TERM = rf"(?:\|\s*{_ATOM}\s*-\s*{_ATOM}\s*\||{_ATOM})"
+_VALUE = rf"(?:{_ATOM}(?:\s*/\s*{_ATOM})?)"  # an atom, or the ratio of two
+_TERM = rf"(?:\|\s*{_VALUE}\s*-\s*{_VALUE}\s*\||{_VALUE})"
 _RELATION = re.compile(rf"^\s*({_TERM})\s*(<=|>=|<|>)\s*({_TERM})\s*$")
-_ABS = re.compile(rf"^\|\s*({_ATOM})\s*-\s*({_ATOM})\s*\|$")
+_ABS = re.compile(rf"^\|\s*({_VALUE})\s*-\s*({_VALUE})\s*\|$")
 _OPS = {"<": lambda a, b: a < b, "<=": lambda a, b: a <= b, ">": lambda a, b: a > b, ">=": lambda a, b: a >= b}
 
 
 def parse_relation(rel: str) -> tuple[str, str, str] | None:
-    """``(left, op, right)`` of a relation ``"a > b"`` / ``"|a - b| < c"`` (module doc), None when it is not one."""
+    """``(left, op, right)`` of a relation ``"a > b"`` / ``"|a - b| < c"`` / ``"|a / b - 1| < 0.005"`` (module doc),
+    None when it is not one."""
     m = _RELATION.match(rel) if isinstance(rel, str) else None
     return (m.group(1).strip(), m.group(2), m.group(3).strip()) if m else None
 
@@ -132,10 +135,15 @@ def _term_value(term: str, metrics: Mapping[str, float]) -> float | None:
         v = metrics.get(a)
         ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
         return float(v) if ok else None
+    def value(v: str) -> float | None:
+        if "/" not in v:
+            return atom(v)
+        num, den = (atom(a) for a in v.split("/"))
+        return None if num is None or den is None or den == 0 else num / den
     if m := _ABS.match(term):
-        vx, vy = atom(m.group(1)), atom(m.group(2))
+        vx, vy = value(m.group(1)), value(m.group(2))
         return None if vx is None or vy is None else abs(vx - vy)
-    return atom(term)
+    return value(term)
 
 
 def stale_relations(relations: list[str], metrics: Mapping[str, float]) -> list[str]:
@@ -455,7 +463,7 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
         for rel in relations:
             if parse_relation(rel) is None:
                 raise err(f"{key}.relations", rel, "a relation 'X op Y' (op one of <, <=, >, >=; X, Y a metric id, "
-                          "a number or |A - B|)")
+                          "a number, A / B or |A - B|)")
             if not relation_metrics(rel):
                 raise err(f"{key}.relations", rel, "a relation that reads a metric of the run (numbers alone are "
                           "checked once, here, and never go stale)")
