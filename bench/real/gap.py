@@ -433,11 +433,12 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     held = [s for s in order if s in test_set][: config.n_test]
     thr = Thresholds(max_effects=config.max_effects)
     calib = set(int(s) for s in calib_steps)
+    calib_order = [s for s in order if s in calib]  # the calibration steps in time order
     step_runs = {s: block_run(w, [s], plat) for s in order}  # each step on its own, for every stage that replays one
     stages = start_model(w, calib_steps, scn, catalogue, config, step_runs)
     start, catalogue = stages.start, stages.catalogue
     if config.separate:  # the first n_fit calibration steps, each its own run (bench.gap.segments)
-        block = [s for s in order if s in calib][: config.n_fit]
+        block = calib_order[: config.n_fit]
         fit_runs = [step_runs[s] for s in block]
     else:  # the first n_fit consecutive ones as one run
         block = fit_block(w, calib_steps, config.n_fit)
@@ -446,7 +447,7 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
                    catalogue=catalogue, progress=progress)
     fit_run, fit_duration = fit_runs[0], float(sum(r.t[-1] - r.t[0] for r in fit_runs))
     after = None if start is scn else start
-    validation = validate([step_runs[s] for s in order if s in calib and s not in block][: config.n_validation],
+    validation = validate([step_runs[s] for s in calib_order if s not in block][: config.n_validation],
                           scn, res, after)
     keep = validation["kept"]
     steps = [step_residuals(step_runs[s], scn, res, after, keep) for s in held]
@@ -456,13 +457,13 @@ def run_real_gap(data_path: str | Path, out_dir: str | Path | None, seed: int = 
     held_out["stalls"] = {
         **stall_summary(held, [s["motion"]["measured"] for s in steps], [s["motion"]["final"] for s in steps],
                         [s["cost"]["before"] for s in steps], [s["cost"]["after"] for s in steps]),
-        "calibration_steps": [s for s in order if s in calib
-                              and motion_ratio(run_series(step_runs[s]), radius, track) < STALL_RATIO],
+        "calibration_steps": [s for s in calib_order
+                              if motion_ratio(run_series(step_runs[s]), radius, track) < STALL_RATIO],
         "n_calibration": len(calib)}
     st = held_out["stalls"]  # the steps commanded like a spin, and how many of them stall, per half
     st["spin_like"] = {half: {"n": len(spin), "stalled": len(set(spin) & set(stalled))} for half, spin, stalled in (
         ("held_out", spin_like_steps(w, held), st["steps"]),
-        ("calibration", spin_like_steps(w, [s for s in order if s in calib]), st["calibration_steps"]))}
+        ("calibration", spin_like_steps(w, calib_order), st["calibration_steps"]))}
     tracking = command_tracking(w, radius, track)
     cmd = np.concatenate([np.abs(w["cmd_wl"]).ravel(), np.abs(w["cmd_wr"]).ravel()])
     enc = np.concatenate([np.abs(w["enc_wl"]).ravel(), np.abs(w["enc_wr"]).ravel()])

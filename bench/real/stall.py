@@ -114,13 +114,13 @@ def spin_like_steps(w: Any, steps: Sequence[int]) -> list[int]:
     """The ``steps`` (``calib_step`` ids of a DRIVE window table ``w``) commanded like a spin: the mean over the
     step's windows of the commanded half-sum ``(w_l + w_r)/2`` is under :data:`SPIN_SHARE` of the half-difference
     ``(w_r - w_l)/2``, and that above :data:`SPIN_MIN` rad/s."""
-    step = np.asarray(w.calib_step)
+    step, cmd_l, cmd_r = np.asarray(w.calib_step), np.asarray(w["cmd_wl"]), np.asarray(w["cmd_wr"])
     out = []
     for s in steps:
         rows = step == s
         if not rows.any():
             continue
-        cl, cr = float(np.nanmean(np.asarray(w["cmd_wl"])[rows])), float(np.nanmean(np.asarray(w["cmd_wr"])[rows]))
+        cl, cr = float(np.nanmean(cmd_l[rows])), float(np.nanmean(cmd_r[rows]))
         half_sum, half_diff = 0.5 * (cl + cr), 0.5 * (cr - cl)
         if abs(half_diff) > SPIN_MIN and abs(half_sum) < SPIN_SHARE * abs(half_diff):
             out.append(int(s))

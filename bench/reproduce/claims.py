@@ -88,12 +88,17 @@ def quoted_metrics(text: str) -> list[tuple[str, str]]:
     return [(m.group(1), m.group(2) or ".4g") for m in _QUOTED.finditer(text)]
 
 
+def _is_number(v: Any) -> bool:
+    """A real number a metric may hold (a bool is a flag, not a number)."""
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
 def fill_numbers(text: str, metrics: Mapping[str, float]) -> str:
     """``text`` with each quoted metric replaced by its value in ``metrics`` (module doc); a metric the run lacks is
     written ``[no metric id]``, a NaN or infinite one ``[id: nan]`` / ``[id: inf]``."""
     def one(m: re.Match[str]) -> str:
         v = metrics.get(m.group(1))
-        if not isinstance(v, numbers.Real) or isinstance(v, bool):
+        if not _is_number(v):
             return f"[no metric {m.group(1)}]"
         if not math.isfinite(v):
             return f"[{m.group(1)}: {v}]"
@@ -133,8 +138,7 @@ def _term_value(term: str, metrics: Mapping[str, float]) -> float | None:
         if re.fullmatch(_NUM, a):
             return float(a)
         v = metrics.get(a)
-        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
-        return float(v) if ok else None
+        return float(v) if _is_number(v) and math.isfinite(v) else None
     def value(v: str) -> float | None:
         if "/" not in v:
             return atom(v)
@@ -464,19 +468,21 @@ def check_claim(path: str | Path, i: int, c: Mapping[str, Any], table_ids: list[
             if parse_relation(rel) is None:
                 raise err(f"{key}.relations", rel, "a relation 'X op Y' (op one of <, <=, >, >=; X, Y a metric id, "
                           "a number, A / B or |A - B|)")
-            if not relation_metrics(rel):
+            read = relation_metrics(rel)
+            if not read:
                 raise err(f"{key}.relations", rel, "a relation that reads a metric of the run (numbers alone are "
                           "checked once, here, and never go stale)")
-            for metric in relation_metrics(rel):
+            for metric in read:
                 if metric.split(".")[0] not in table_ids:
                     raise err(f"{key}.relations", rel, f"metrics '<table>.<metric>' of a declared table {table_ids}")
-        if quoted_metrics(text) and not relations and (w := COMPARISON_WORDS.search(_QUOTED.sub("", text))):
+        words = _QUOTED.sub("", text)  # the text without its quoted metrics
+        if quoted_metrics(text) and not relations and (w := COMPARISON_WORDS.search(words)):
             raise err(f"{key}.relations", None, f"the text quotes a metric and compares (\"{w.group(0)}\"): state "
                       "the relations its words claim, checked on every run")
         shown = len(_QUOTED.sub(lambda m: _longest(m.group(2) or ".4g"), text))
         if shown > TEXT_LIMIT:
             raise err(f"{key}.text", _short(text), f"at most {TEXT_LIMIT} characters as shown, not {shown}")
-        if set("{}") & set(_QUOTED.sub("", text)):
+        if set("{}") & set(words):
             raise err(f"{key}.text", _short(text), "braces only around a quoted metric: {metric} or {metric:.3f}")
     try:
         ids = claim_metric_ids(c)
